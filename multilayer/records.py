@@ -1,0 +1,120 @@
+"""Frozen records that plugins hand to the registry: the plugin and its parameters."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+import attrs
+
+#: Marker for a parameter that has no default and must be given.
+REQUIRED: Any = attrs.make_class("Required", [], repr_ns=None)()
+
+
+@attrs.frozen
+class Param:
+    """One parameter of a plugin, in physical units.
+
+    Parameters
+    ----------
+    name : str
+        The key a case file uses (``young``, ``density``, ...).
+    symbol : str
+        The symbol of the scheme (``E``, ``ρ₁``, ``C1``), for docs.
+    unit : str
+        Physical unit (CGS), e.g. ``dyn/cm²``.
+    default : object
+        Default value, or :data:`REQUIRED`; ``None`` means optional with no value.
+    type : type
+        ``float``, ``int``, ``str`` or ``bool``.  An ``int`` is accepted for a float.
+    gt, ge, lt, le : float, optional
+        Open/closed bounds checked by the case validator.
+    choices : tuple of str, optional
+        Allowed values of a string parameter.
+    doc : str
+        One line: what the parameter is.
+
+    Examples
+    --------
+    >>> p = Param("poisson", "σ", gt=-1.0, lt=0.5, doc="Poisson ratio")
+    >>> p.required
+    True
+    >>> p.bounds_text()
+    '> -1.0 and < 0.5'
+    """
+
+    name: str
+    symbol: str = ""
+    unit: str = ""
+    default: Any = REQUIRED
+    type: type = float
+    gt: float | None = None
+    ge: float | None = None
+    lt: float | None = None
+    le: float | None = None
+    choices: tuple[str, ...] | None = None
+    doc: str = ""
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+    def bounds_text(self) -> str:
+        parts = []
+        for op, val in ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le)):
+            if val is not None:
+                parts.append(f"{op} {val}")
+        return " and ".join(parts)
+
+
+@attrs.frozen
+class PluginRecord:
+    """What a plugin registers: a name, a factory, its parameter schema, one line of doc."""
+
+    kind: ClassVar[str] = "plugin"
+
+    name: str
+    factory: Callable[..., Any]
+    params: tuple[Param, ...] = attrs.field(default=(), converter=tuple)
+    doc: str = ""
+
+    def param(self, name: str) -> Param | None:
+        for p in self.params:
+            if p.name == name:
+                return p
+        return None
+
+
+@attrs.frozen
+class LayerPlugin(PluginRecord):
+    """A wall-layer model. ``thin`` is True for an interface-line layer."""
+
+    kind: ClassVar[str] = "layer"
+    thin: bool = True
+
+
+@attrs.frozen
+class FluidPlugin(PluginRecord):
+    kind: ClassVar[str] = "fluid"
+
+
+@attrs.frozen
+class CouplerPlugin(PluginRecord):
+    kind: ClassVar[str] = "coupler"
+
+
+@attrs.frozen
+class Registered:
+    """A record as the registry holds it: with the package that provided it."""
+
+    record: PluginRecord
+    package: str
+    version: str
+
+    @property
+    def kind(self) -> str:
+        return self.record.kind
+
+    @property
+    def name(self) -> str:
+        return self.record.name

@@ -1,0 +1,1 @@
+"""Built-in multilayer plugins, registered through the ``multilayer`` entry-point group."""
