@@ -1,0 +1,148 @@
+"""A scene: the case's models built and placed, ready for a coupler to drive.
+
+The scene owns what every coupler shares: the layer objects, the wall's
+spaces and assembled stack, the fluid (if any), the current state, the
+solver statistics and the phase timings.  It also evaluates probes and
+writes field snapshots, so couplers only advance the state.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.case import Case, Probe
+from multilayer.interfaces import Coupler, Fluid, Layer
+from multilayer.linsolve import SolverStats
+from multilayer.registry import Registry
+from multilayer.structure import WallState, zero_fixed
+from multilayer.wall import Stack, WallSpace
+
+WALL_QUANTITIES = ("eta", "v", "d_z", "d_r")
+
+
+def build_model(registry: Registry, kind: str, spec) -> Any:
+    return registry.get(kind, spec.model).record.factory(**dict(spec.params))
+
+
+@attrs.define(eq=False)
+class Scene:
+    case: Case
+    registry: Registry
+    layers: list[Layer]
+    coupler: Coupler
+    fluid: Fluid | None = None
+    wall: WallSpace | None = None
+    stack: Stack | None = None
+    wall_state: WallState | None = None
+    fluid_state: Any = None
+    stats: SolverStats = attrs.field(factory=SolverStats)
+    timings: dict[str, float] = attrs.field(factory=lambda: {"assembly": 0.0, "output": 0.0})
+
+    @classmethod
+    def build(cls, case: Case, registry: Registry) -> Scene:
+        t0 = time.perf_counter()
+        layers = [build_model(registry, "layer", spec) for spec in case.layers]
+        coupler = build_model(registry, "coupler", case.coupler)
+        fluid = build_model(registry, "fluid", case.fluid) if case.fluid is not None else None
+        scene = cls(case=case, registry=registry, layers=layers, coupler=coupler, fluid=fluid)
+        if layers:
+            g, m = case.geometry, case.mesh
+            scene.wall = WallSpace.build(layers, g.length, g.radius, m.nz, m.order,
+                                         [spec.cells for spec in case.layers])
+            scene.stack = Stack.assemble(scene.wall)
+            init = case.initial
+            d0 = scene.wall.interpolate(init.displacement_z, init.displacement_r)
+            v0 = scene.wall.interpolate(init.velocity_z, init.velocity_r)
+            scene.wall_state = WallState(zero_fixed(scene.stack, d0), zero_fixed(scene.stack, v0))
+        scene.timings["assembly"] += time.perf_counter() - t0
+        return scene
+
+    @property
+    def dt(self) -> float:
+        return self.case.time.dt
+
+    @property
+    def steps(self) -> int:
+        return self.case.time.steps
+
+    # -- wall quantities ----------------------------------------------------
+    def eta(self, line: int = 0) -> np.ndarray:
+        """η on ``line`` in the line's own numbering."""
+        return self.wall.prolongations[line].T @ self.wall_state.d
+
+    def wall_velocity(self, line: int = 0) -> np.ndarray:
+        if line == 0 and self.wall_state.v is not None:
+            return self.wall_state.v
+        return self.wall.prolongations[line].T @ self.wall_state.V
+
+    def dof_counts(self) -> dict[str, int]:
+        out = {}
+        if self.wall is not None:
+            out["wall"] = int(self.wall.ndofs)
+            out["wall_free"] = int(self.stack.free.size)
+        if self.fluid is not None and hasattr(self.fluid, "ndofs"):
+            out["fluid"] = int(self.fluid.ndofs)
+        return out
+
+    # -- probes ---------------------------------------------------------------
+    def probe_rows(self, probes: tuple[Probe, ...]) -> dict[str, Any]:
+        """Build each probe's evaluator once: a sparse row over the wall DOFs, or a fluid callable."""
+        rows = {}
+        for p in probes:
+            if p.quantity in WALL_QUANTITIES:
+                rows[p.name] = self._wall_probe(p)
+            elif self.fluid is not None and hasattr(self.fluid, "probe"):
+                rows[p.name] = ("fluid", p)
+        return rows
+
+    def _wall_probe(self, p: Probe):
+        wall = self.wall
+        if p.quantity in ("eta", "v") or wall.basis is None:
+            i = p.line if p.quantity in ("eta", "v") else 0
+            row = wall.lines[i].basis.probes(np.array([[p.z]])).tocsr()
+            return ("line", "v" if p.quantity == "v" else "eta", i, row)
+        comp = {"d_z": 0, "d_r": 1}[p.quantity]
+        return ("wall", p.quantity, None, wall.basis.probes(np.array([[p.z], [p.r]])).tocsr()[comp])
+
+    def probe_values(self, rows: dict[str, Any]) -> dict[str, float]:
+        out = {}
+        for name, ev in rows.items():
+            if ev[0] == "line":
+                _, q, i, row = ev
+                vec = self.wall_velocity(i) if q == "v" else self.eta(i)
+            elif ev[0] == "wall":
+                _, q, _, row = ev
+                vec = self.wall_state.d
+            else:
+                out[name] = float(self.fluid.probe(self.fluid_state, ev[1]))
+                continue
+            out[name] = float((row @ vec)[0])
+        return out
+
+    # -- snapshots ------------------------------------------------------------
+    def wall_snapshot(self) -> tuple[np.ndarray, dict, dict]:
+        """Points, cells and point data of the wall at its reference position.
+
+        ``displacement`` is a 3-vector field, so ParaView's *Warp By Vector*
+        shows the deformed wall.
+        """
+        wall, st = self.wall, self.wall_state
+        if wall.basis is None:
+            line = wall.lines[0]
+            mesh = line.basis.mesh
+            vert = line.basis.nodal_dofs[0]
+            eta = st.d[vert]
+            pts = np.column_stack([mesh.p[0], np.full(mesh.p.shape[1], line.radius), np.zeros(mesh.p.shape[1])])
+            disp = np.column_stack([np.zeros_like(eta), eta, np.zeros_like(eta)])
+            return pts, {"line": mesh.t.T}, {"displacement": disp, "eta": eta, "velocity_r": st.V[vert]}
+        mesh = wall.basis.mesh
+        nd = wall.basis.nodal_dofs
+        pts = np.column_stack([mesh.p[0], mesh.p[1], np.zeros(mesh.p.shape[1])])
+        disp = np.column_stack([st.d[nd[0]], st.d[nd[1]], np.zeros(mesh.p.shape[1])])
+        vel = np.column_stack([st.V[nd[0]], st.V[nd[1]], np.zeros(mesh.p.shape[1])])
+        return pts, {"triangle": mesh.t.T}, {"displacement": disp, "velocity": vel}

@@ -1,0 +1,169 @@
+"""The wall as one structure problem: every layer of the stack on one set of DOFs.
+
+Reading the stack from the lumen outward, thin layers sit on interface
+lines and thick layers are radial bands (SCHEME §1).  Line 0 is r = R; each
+band ends on the next line.  When the stack has thick bands, the unknowns
+are the displacement d = (d_z, d_r) of one conforming vector-Lagrange field
+on all bands, and a thin layer's η IS d_r on its line (with d_z = 0 there);
+with no band, the unknowns are η on line 0 alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+import skfem
+
+from multilayer.interfaces import BandSpace, Layer, LayerMatrices, LineSpace
+from multilayer.mesh import lagrange_tri, wall_mesh
+from multilayer.spaces import line_prolongation, make_line_space
+
+
+@attrs.frozen(eq=False)
+class Placement:
+    """Where one layer of the stack sits: its line (thin) or band (thick)."""
+
+    index: int  #: position in the stack (``layers[index]`` of the case)
+    layer: Layer
+    line: int | None = None
+    band: int | None = None
+
+
+@attrs.define(eq=False)
+class WallSpace:
+    """DOFs of the whole wall and the maps from each line and band into them."""
+
+    length: float
+    radius: float
+    order: int
+    ndofs: int
+    lines: list[LineSpace]  #: interface lines, 0 = lumen, then one per band boundary
+    prolongations: list[sp.csr_matrix]  #: P_i: line i DOFs → wall DOFs
+    bands: list[BandSpace]
+    basis: skfem.CellBasis | None  #: vector basis on all bands (None: no band)
+    placements: list[Placement]
+
+    @classmethod
+    def build(cls, layers: Sequence[Layer], length: float, radius: float, nz: int, order: int,
+              band_cells: Sequence[int | None] = ()) -> WallSpace:
+        """Place ``layers`` (lumen outward) and build the wall's spaces.
+
+        ``band_cells[i]`` is the radial cell count of ``layers[i]`` when it is thick.
+        """
+        placements: list[Placement] = []
+        bands_spec: list[tuple[float, int]] = []
+        for i, layer in enumerate(layers):
+            if layer.thin:
+                placements.append(Placement(i, layer, line=len(bands_spec)))
+            else:
+                cells = (band_cells[i] if i < len(band_cells) else None) or 4
+                placements.append(Placement(i, layer, band=len(bands_spec)))
+                bands_spec.append((float(layer.thickness), int(cells)))
+
+        if not bands_spec:
+            line = make_line_space(length, nz, order, radius)
+            eye = sp.identity(line.ndofs, format="csr")
+            return cls(length, radius, order, line.ndofs, [line], [eye], [], None, placements)
+
+        mesh, band_elements, edges = wall_mesh(length, radius, nz, bands_spec)
+        elem = skfem.ElementVector(lagrange_tri(order))
+        basis = skfem.Basis(mesh, elem)
+        bands = [
+            BandSpace(basis=skfem.Basis(mesh, elem, elements=els), r_inner=a, r_outer=b,
+                      length=length, order=order)
+            for els, a, b in zip(band_elements, edges[:-1], edges[1:])
+        ]
+        r_dofs = basis.split_indices()[1]
+        zr = basis.doflocs[:, r_dofs]
+        lines, prolongations = [], []
+        for r_line in edges:
+            line = make_line_space(length, nz, order, r_line)
+            on = np.abs(zr[1] - r_line) < 1e-9 * max(r_line, 1.0)
+            lines.append(line)
+            prolongations.append(line_prolongation(line, r_dofs[on], zr[0, on], basis.N))
+        return cls(length, radius, order, int(basis.N), lines, prolongations, bands, basis, placements)
+
+    # -- where things are ---------------------------------------------------
+    def space_of(self, p: Placement) -> LineSpace | BandSpace:
+        return self.lines[p.line] if p.line is not None else self.bands[p.band]
+
+    def thin_lines(self) -> list[int]:
+        return sorted({p.line for p in self.placements if p.line is not None})
+
+    @property
+    def outer_line(self) -> int:
+        return len(self.lines) - 1
+
+    def line_dofs(self, i: int) -> np.ndarray:
+        """Wall DOFs of line i, in the line's own order."""
+        return self.prolongations[i].tocsc().indices
+
+    def line_load(self, i: int) -> np.ndarray:
+        """∫ ψ dz on line i, in wall numbering: the work vector of a unit pressure."""
+        line = self.lines[i]
+        return self.prolongations[i] @ skfem.asm(_unit_load, line.basis)
+
+    def tangential_dofs_on(self, i: int) -> np.ndarray:
+        """d_z DOFs on line i (held at zero under a thin layer)."""
+        if self.basis is None:
+            return np.zeros(0, dtype=np.int64)
+        z_dofs = self.basis.split_indices()[0]
+        r = self.basis.doflocs[1, z_dofs]
+        return z_dofs[np.abs(r - self.lines[i].radius) < 1e-9 * max(self.lines[i].radius, 1.0)]
+
+    # -- initial data -------------------------------------------------------
+    def interpolate(self, fz, fr) -> np.ndarray:
+        """Nodal interpolant of the vector field (fz, fr)(z, r) on the wall DOFs."""
+        if self.basis is None:
+            line = self.lines[0]
+            return np.asarray(fr(z=line.z, r=np.full_like(line.z, line.radius), t=0.0), dtype=float)
+        out = np.zeros(self.ndofs)
+        for comp, f in zip(self.basis.split_indices(), (fz, fr)):
+            z, r = self.basis.doflocs[:, comp]
+            out[comp] = f(z=z, r=r, t=0.0)
+        return out
+
+
+@skfem.LinearForm
+def _unit_load(v, w):
+    return v
+
+
+@attrs.define(eq=False)
+class Stack:
+    """The assembled stack: per-layer matrices in wall numbering, their sums, the free DOFs."""
+
+    space: WallSpace
+    matrices: list[LayerMatrices]  #: one per layer, in stack order
+    mass: sp.csr_matrix
+    damping: sp.csr_matrix
+    stiffness: sp.csr_matrix
+    fixed: np.ndarray  #: essential DOFs, held at zero
+    free: np.ndarray
+
+    @classmethod
+    def assemble(cls, space: WallSpace) -> Stack:
+        n = space.ndofs
+        matrices: list[LayerMatrices] = []
+        fixed = [np.zeros(0, dtype=np.int64)]
+        for p in space.placements:
+            sub = space.space_of(p)
+            own = p.layer.forms(sub)
+            ess = np.asarray(p.layer.essential_dofs(sub), dtype=np.int64)
+            if p.line is not None:
+                P = space.prolongations[p.line]
+                own = own.scattered(P)
+                ess = space.line_dofs(p.line)[ess]
+                fixed.append(space.tangential_dofs_on(p.line))
+            matrices.append(own)
+            fixed.append(ess)
+        zero = sp.csr_matrix((n, n))
+        M = sum((m.mass for m in matrices), zero).tocsr()
+        C = sum((m.damping for m in matrices), zero).tocsr()
+        K = sum((m.stiffness for m in matrices), zero).tocsr()
+        fixed_all = np.unique(np.concatenate(fixed))
+        free = np.setdiff1d(np.arange(n), fixed_all)
+        return cls(space, matrices, M, C, K, fixed_all, free)
