@@ -165,8 +165,12 @@ class ThinLayer(Layer):
         """Ends pinned: η(0) = η(L) = 0."""
         return space.end_dofs
 
-    def long_wave_stiffness(self) -> float:
-        """C0 (dyn/cm³): the k → 0 limit of the layer's stiffness, 0 if none."""
+    def long_wave_stiffness(self, radius: float | None = None) -> float:
+        """C0 (dyn/cm³): the k → 0 limit of the layer's stiffness, 0 if none.
+
+        ``radius`` is the radius of the line the layer sits on, for models
+        whose coefficients depend on it.
+        """
         return 0.0
 
 
