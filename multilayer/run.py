@@ -78,7 +78,10 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
     status, reason, steps, max_rel = "ok", "", 0, 0.0
     scene: Scene | None = None
     try:
-        scene = Scene.build(case, registry)
+        try:
+            scene = Scene.build(case, registry)
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+            raise RunFailed(f"setting up the scene failed: {exc}") from exc
         probes = scene.probe_rows(case.output.probes)
         every = case.output.every
         series = None

@@ -152,6 +152,11 @@ class Stack:
         for p in space.placements:
             sub = space.space_of(p)
             own = p.layer.forms(sub)
+            for part in ("mass", "damping", "stiffness"):
+                values = getattr(own, part).data
+                if not np.all(np.isfinite(values)):
+                    raise ValueError(f"layers[{p.index}] ({type(p.layer).__name__}) returned "
+                                     f"non-finite entries in its {part} matrix")
             ess = np.asarray(p.layer.essential_dofs(sub), dtype=np.int64)
             if p.line is not None:
                 P = space.prolongations[p.line]
