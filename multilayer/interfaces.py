@@ -28,6 +28,7 @@ import scipy.sparse as sp
 if TYPE_CHECKING:  # pragma: no cover
     import skfem
 
+    from multilayer.case import Case
     from multilayer.scene import Scene
 
 
@@ -213,8 +214,11 @@ class StepReport:
 class Coupler(ABC):
     """A time-stepping scheme that drives a scene."""
 
-    def check(self, scene: Scene) -> list[str]:
-        """Reasons this coupler cannot run ``scene`` (empty when it can)."""
+    def check_case(self, case: Case) -> list[str]:
+        """Reasons this coupler cannot run ``case`` (empty when it can).
+
+        Called by the case validator, so ``multilayer validate`` reports them.
+        """
         return []
 
     @abstractmethod

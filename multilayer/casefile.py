@@ -1,0 +1,542 @@
+"""TOML case files → a validated :class:`multilayer.case.Case`.
+
+Every mistake is reported in the user's words — key path, value, what was
+expected, the nearest valid name — and all of them at once
+(:class:`~multilayer.problems.CaseError`).  Plugin parameters are checked
+against the :class:`~multilayer.records.Param` schema each plugin registers;
+the core sections are checked the same way against the schemas below.
+See ``docs/case-files.md`` for the format.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import tomllib
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from multilayer.case import (
+    Case,
+    Geometry,
+    Initial,
+    LayerSpec,
+    Loads,
+    MeshSpec,
+    ModelSpec,
+    Output,
+    Probe,
+    TimeSpec,
+)
+from multilayer.formula import Formula, FormulaError
+from multilayer.linsolve import BACKENDS
+from multilayer.loads import load_from_spec
+from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
+from multilayer.records import Param
+from multilayer.registry import Registry
+
+__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems"]
+
+SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver")
+
+GEOMETRY = (
+    Param("length", "L", "cm", gt=0.0, doc="channel length"),
+    Param("radius", "R", "cm", gt=0.0, doc="reference radius of the lumen"),
+)
+MESH = (
+    Param("nz", type=int, ge=1, doc="cells along z, shared by every field"),
+    Param("nr", type=int, ge=1, doc="fluid cells across the lumen"),
+    Param("order", type=int, choices=(1, 2), doc="polynomial order of every field"),
+    Param("grading", default=1.0, ge=1.0, doc="fluid refinement toward the wall (1 = uniform)"),
+)
+TIME = (
+    Param("end", "T", "s", gt=0.0, doc="final time"),
+    Param("dt", "Δt", "s", gt=0.0, doc="time step"),
+)
+#: radial cells of a thick layer: a core key, not a plugin parameter
+CELLS = Param("cells", type=int, ge=1, default=4, doc="radial cells of a thick band")
+LOAD_KEYS = ("inlet", "outlet", "external", "interface")
+QUANTITIES = ("eta", "v", "d_z", "d_r", "u_z", "u_r", "p", "flow_rate")
+FLUID_QUANTITIES = ("u_z", "u_r", "p", "flow_rate")
+LINE_QUANTITIES = ("eta", "v")
+POINT_QUANTITIES = ("d_z", "d_r", "u_z", "u_r", "p")
+PROBE = (
+    Param("name", type=str, default=None, doc="column name in series.csv"),
+    Param("quantity", type=str, choices=QUANTITIES, doc="what is measured"),
+    Param("z", "z", "cm", doc="axial position"),
+    Param("r", "r", "cm", default=None, doc="radial position (reference configuration)"),
+    Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
+)
+OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
+SOLVER = (Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),)
+#: relative tolerance on end/dt being a whole number of steps
+STEPS_TOL = 1e-6
+
+
+def load_case(path: Path | str, overrides: Iterable[str] = (), registry: Registry | None = None) -> Case:
+    """Read, override and validate a case file.
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML case file.  Table files it names are relative to its folder.
+    overrides : iterable of str
+        ``dotted.key=value`` strings applied before validation
+        (``time.dt=5e-5``, ``layers[0].young=1e6``, ``fluid=none``).
+    registry : Registry, optional
+        The plugins to validate against; all installed ones by default.
+
+    Raises
+    ------
+    CaseError
+        Listing every problem found, each with its key path.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise CaseError([Problem(str(path), MISSING, "no such case file")]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseError([Problem(str(path), MISSING, f"cannot read the case file ({exc})")]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError([Problem(str(path), MISSING, f"invalid TOML: {exc}")]) from None
+    overrides = list(overrides)
+    problems = apply_overrides(data, overrides)
+    if problems:
+        raise CaseError(problems)
+    try:
+        return validate_data(data, path.parent, registry or Registry.load())
+    except CaseError as exc:
+        raise CaseError(_blame_overrides(exc.problems, overrides)) from None
+
+
+def validate_data(data: Mapping[str, Any], base_dir: Path | str = ".", registry: Registry | None = None) -> Case:
+    """Validate parsed case data and build the :class:`~multilayer.case.Case`.
+
+    Raises
+    ------
+    CaseError
+        Listing every problem found.
+    """
+    registry = registry or Registry.load()
+    case = _Validator(registry, Path(base_dir)).case(data)
+    problems = coupler_problems(case, registry)
+    if problems:
+        raise CaseError(problems)
+    return case
+
+
+def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
+    """Reasons the case's coupler gives against the case (its optional ``check_case``).
+
+    The coupler factory is called with the case's coupler parameters; a
+    ``ValueError`` it raises and every string its ``check_case(case)``
+    returns become problems at ``coupler.model``.
+    """
+    record = registry.get("coupler", case.coupler.model).record
+    try:
+        coupler = record.factory(**case.coupler.params)
+    except ValueError as exc:
+        return [Problem(case.coupler.path, MISSING, f"{case.coupler.model}: {exc}")]
+    check = getattr(coupler, "check_case", None)
+    if check is None:
+        return []
+    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in check(case)]
+
+
+# -- overrides -------------------------------------------------------------
+
+_STEP = re.compile(r"([A-Za-z0-9_-]+)((?:\[\d+\])*)$")
+
+
+def parse_value(text: str) -> Any:
+    """A ``--set`` value: a TOML value when it is one, else the bare string.
+
+    >>> parse_value("5e-5"), parse_value("true"), parse_value("koiter-shell"), parse_value('"a b"')
+    (5e-05, True, 'koiter-shell', 'a b')
+    """
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text.strip()
+
+
+def _key_steps(key: str) -> list[str | int] | None:
+    steps: list[str | int] = []
+    for part in key.split("."):
+        match = _STEP.match(part)
+        if not match:
+            return None
+        steps.append(match.group(1))
+        steps.extend(int(i) for i in re.findall(r"\[(\d+)\]", match.group(2)))
+    return steps
+
+
+def _path_text(steps: Iterable[str | int]) -> str:
+    text = ""
+    for s in steps:
+        text += f"[{s}]" if isinstance(s, int) else (f".{s}" if text else s)
+    return text
+
+
+def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[Problem]:
+    """Apply ``key=value`` overrides to ``data`` in place; the problems found.
+
+    A missing table on the way is created (the validator then judges its
+    keys); a list index must exist.
+
+    >>> data = {"time": {"dt": 1e-4}, "layers": [{"model": "wave-membrane"}]}
+    >>> apply_overrides(data, ["time.dt=5e-5", "layers[0].tension=2e4"])
+    []
+    >>> data["time"]["dt"], data["layers"][0]["tension"]
+    (5e-05, 20000.0)
+    >>> print(*apply_overrides(data, ["layers[3].young=1"]))
+    layers[3]: no such entry; 'layers' has 1
+    """
+    problems = []
+    for item in overrides:
+        key, eq, text = item.partition("=")
+        key = key.strip()
+        steps = _key_steps(key) if eq else None
+        if not steps:
+            problems.append(Problem("--set", item, "expected KEY=VALUE with KEY like time.dt or layers[0].young"))
+            continue
+        node: Any = data
+        for i, step in enumerate(steps):
+            last = i == len(steps) - 1
+            where = _path_text(steps[: i + 1])
+            if isinstance(step, int):
+                if not isinstance(node, list):
+                    problems.append(Problem(_path_text(steps[:i]), MISSING, "not a list; cannot index it"))
+                    break
+                if step >= len(node):
+                    problems.append(Problem(where, MISSING, f"no such entry; {_path_text(steps[:i])!r} has {len(node)}"))
+                    break
+            elif not isinstance(node, dict):
+                problems.append(Problem(_path_text(steps[:i]), node, f"not a table; cannot set {step!r} in it"))
+                break
+            if last:
+                node[step] = parse_value(text)
+            else:
+                if isinstance(step, str) and step not in node:
+                    node[step] = {}
+                node = node[step]
+    return problems
+
+
+def _blame_overrides(problems: list[Problem], overrides: list[str]) -> list[Problem]:
+    keys = [o.partition("=")[0].strip() for o in overrides]
+    out = []
+    for p in problems:
+        if any(p.path == k or p.path.startswith((k + ".", k + "[")) for k in keys):
+            if p.hint:
+                p = Problem(p.path, p.value, p.expected, f"{p.hint} (from --set)")
+            else:
+                p = Problem(p.path, p.value, f"{p.expected} (from --set)")
+        out.append(p)
+    return out
+
+
+# -- validation -------------------------------------------------------------
+
+
+class _Validator:
+    """One pass over a case: collects every problem, builds the case when there are none."""
+
+    def __init__(self, registry: Registry, base_dir: Path):
+        self.registry = registry
+        self.base_dir = base_dir
+        self.problems: list[Problem] = []
+        #: False once a layer is invalid: then H and the line count are unknown
+        self.stack_known = True
+
+    def add(self, problems: Iterable[Problem]) -> None:
+        self.problems.extend(problems)
+
+    def section(self, data: Mapping[str, Any], name: str, schema: tuple[Param, ...]) -> dict[str, Any]:
+        required = [p.name for p in schema if p.required]
+        if name not in data and required:
+            self.problems.append(Problem(name, MISSING, f"missing; expected a [{name}] table with {', '.join(required)}"))
+            return {}
+        values, problems = check_params(data.get(name, {}), schema, name)
+        self.add(problems)
+        return values
+
+    def case(self, data: Mapping[str, Any]) -> Case:
+        if not isinstance(data, Mapping):
+            raise CaseError([Problem("case", data, "expected a table of sections")])
+        self.add(
+            Problem(key, value, "unknown section", did_you_mean(key, SECTIONS))
+            for key, value in data.items()
+            if key not in SECTIONS
+        )
+        title = data.get("title", "")
+        if not isinstance(title, str):
+            self.problems.append(Problem("title", title, "expected a string"))
+        geometry = self.section(data, "geometry", GEOMETRY)
+        mesh = self.section(data, "mesh", MESH)
+        time = self.section(data, "time", TIME)
+        self.check_steps(time)
+        fluid = self.fluid(data.get("fluid"))
+        layers, H = self.layers(data.get("layers", MISSING), fluid)
+        coupler = self.coupler(data.get("coupler", MISSING), fluid)
+        # stand-ins keep formulas checkable while geometry has its own problems
+        constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
+        loads = self.loads(data.get("loads", {}), constants)
+        initial = self.initial(data.get("initial", {}), constants)
+        output = self.output(data.get("output", {}), constants, fluid, layers)
+        solver = self.section(data, "solver", SOLVER)
+        if self.problems:
+            raise CaseError(self.problems)
+
+        resolved = {
+            "title": title,
+            "geometry": geometry,
+            "mesh": mesh,
+            "time": time,
+            "fluid": None if fluid is None else {"model": fluid.model, **fluid.params},
+            "layers": [
+                {"model": layer.model, **layer.params, **({} if layer.thin else {"cells": layer.cells})}
+                for layer in layers
+            ],
+            "coupler": {"model": coupler.model, **coupler.params},
+            "loads": {
+                **{key: getattr(loads, key).to_dict() for key in LOAD_KEYS},
+                "wall_motion": None if loads.wall_motion is None else str(loads.wall_motion),
+            },
+            "initial": {
+                "displacement": {"r": str(initial.displacement_r), "z": str(initial.displacement_z)},
+                "velocity": {"r": str(initial.velocity_r), "z": str(initial.velocity_z)},
+            },
+            "output": {
+                "every": output.every,
+                "probes": [
+                    {"name": p.name, "quantity": p.quantity, "z": p.z, "r": p.r,
+                     "line": p.line if p.quantity in LINE_QUANTITIES else None}
+                    for p in output.probes
+                ],
+            },
+            "solver": solver,
+        }
+        canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
+        return Case(
+            title=title,
+            geometry=Geometry(**geometry),
+            mesh=MeshSpec(**mesh),
+            time=TimeSpec(**time),
+            fluid=fluid,
+            layers=tuple(layers),
+            coupler=coupler,
+            loads=loads,
+            initial=initial,
+            output=output,
+            solver=solver["linear"],
+            resolved=resolved,
+            digest=hashlib.sha256(canonical.encode()).hexdigest(),
+        )
+
+    def check_steps(self, time: Mapping[str, float]) -> None:
+        if "end" not in time or "dt" not in time:
+            return
+        steps = time["end"] / time["dt"]
+        if round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
+            self.problems.append(
+                Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
+                        f"end/dt = {steps:.6g}")
+            )
+
+    def model(self, kind: str, spec: Any, path: str, extra: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any], bool] | None:
+        """(registered plugin, checked params, params ok) of a ``{model = ..., ...}`` table.
+
+        None when there is no such plugin.
+        """
+        if isinstance(spec, str):
+            spec = {"model": spec}
+        if not isinstance(spec, Mapping):
+            self.problems.append(Problem(path, spec, f"expected a table with a 'model' key naming a {kind} plugin"))
+            return None
+        name = spec.get("model", MISSING)
+        names = self.registry.names(kind)
+        available = "available: " + (", ".join(names) or "none installed")
+        if not isinstance(name, str):
+            expected = f"expected the name of a {kind} plugin"
+            self.problems.append(Problem(f"{path}.model", name, ("missing; " if name is MISSING else "") + expected, available))
+            return None
+        found = self.registry.find(kind, name)
+        if found is None:
+            self.problems.append(
+                Problem(f"{path}.model", name, f"no such {kind} plugin", did_you_mean(name, names) or available)
+            )
+            return None
+        params, problems = check_params(spec, found.record.params, path, extra=("model", *extra))
+        self.add(problems)
+        return found, params, not problems
+
+    def construct(self, found: Any, params: dict[str, Any], path: str) -> Any:
+        """Build the plugin once: only its factory can check constraints across parameters."""
+        try:
+            return found.record.factory(**params)
+        except ValueError as exc:
+            message = str(exc) if str(exc).startswith(found.name) else f"{found.name}: {exc}"
+            self.problems.append(Problem(path, MISSING, message))
+            return None
+
+    def fluid(self, spec: Any) -> ModelSpec | None:
+        if spec is None or spec == "none" or (isinstance(spec, Mapping) and spec.get("model") == "none"):
+            return None
+        checked = self.model("fluid", spec, "fluid")
+        if checked is None:
+            # an invalid fluid is still a fluid: do not add "no fluid" problems on top
+            return ModelSpec(path="fluid", model="?")
+        found, params, ok = checked
+        if ok:
+            self.construct(found, params, "fluid")
+        return ModelSpec(path="fluid", model=found.name, params=params)
+
+    def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float]:
+        if specs is MISSING:
+            specs = []
+        if not isinstance(specs, list):
+            self.problems.append(Problem("layers", specs, "expected an array of tables [[layers]]"))
+            return [], 0.0
+        if not specs and fluid is None:
+            self.problems.append(Problem("layers", MISSING, "missing; a case without a fluid needs at least one [[layers]]"))
+        layers, H = [], 0.0
+        for i, spec in enumerate(specs):
+            path = f"layers[{i}]"
+            spec = {"model": spec} if isinstance(spec, str) else spec
+            checked = self.model("layer", spec, path, extra=("cells",))
+            if checked is None:
+                self.stack_known = False
+                continue
+            found, params, ok = checked
+            thin = found.record.thin
+            cells = None
+            if thin and "cells" in spec:
+                self.problems.append(Problem(f"{path}.cells", spec["cells"], "only a thick layer has radial cells",
+                                             f"{found.name!r} is a thin layer"))
+            elif not thin:
+                values, problems = check_params({k: spec[k] for k in ("cells",) if k in spec}, (CELLS,), path)
+                self.add(problems)
+                cells = values.get("cells")
+            if not ok:
+                self.stack_known = False
+                continue
+            layer = self.construct(found, params, path)
+            if not thin:
+                H += float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
+            layers.append(LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells))
+        return layers, H
+
+    def coupler(self, spec: Any, fluid: ModelSpec | None) -> ModelSpec:
+        default = "structure-only" if fluid is None else "kinematic-splitting"
+        if spec is MISSING:
+            spec = {"model": default}
+        elif isinstance(spec, Mapping) and "model" not in spec:
+            spec = {"model": default, **spec}
+        checked = self.model("coupler", spec, "coupler")
+        if checked is None:
+            return ModelSpec(path="coupler", model="?")
+        found, params, _ = checked
+        return ModelSpec(path="coupler", model=found.name, params=params)
+
+    def formula(self, expr: Any, path: str, constants: Mapping[str, float], variables: tuple[str, ...]) -> Formula:
+        try:
+            return Formula.parse(expr, constants, variables)
+        except FormulaError as exc:
+            self.problems.append(Problem(path, expr, f"invalid formula in {', '.join(variables)}: {exc}"))
+            return Formula.zero()
+
+    def table(self, data: Any, path: str, keys: Iterable[str]) -> Mapping[str, Any]:
+        """A table whose keys must be among ``keys``; {} (with a problem) if it is not a table."""
+        if not isinstance(data, Mapping):
+            self.problems.append(Problem(path, data, "expected a table"))
+            return {}
+        keys = list(keys)
+        self.add(
+            Problem(f"{path}.{k}", v, "unknown key", did_you_mean(k, keys)) for k, v in data.items() if k not in keys
+        )
+        return data
+
+    def loads(self, data: Any, constants: Mapping[str, float]) -> Loads:
+        data = self.table(data, "loads", (*LOAD_KEYS, "wall_motion"))
+        pressures = {}
+        for key in LOAD_KEYS:
+            try:
+                pressures[key] = load_from_spec(data.get(key, 0.0), f"loads.{key}", self.base_dir, constants)
+            except CaseError as exc:
+                self.add(exc.problems)
+                pressures[key] = load_from_spec(0.0, f"loads.{key}")
+        motion = data.get("wall_motion")
+        wall_motion = None if motion is None else self.formula(motion, "loads.wall_motion", constants, ("t", "z"))
+        return Loads(**pressures, wall_motion=wall_motion)
+
+    def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
+        data = self.table(data, "initial", ("displacement", "velocity"))
+        fields = {}
+        for name in ("displacement", "velocity"):
+            part = self.table(data.get(name, {}), f"initial.{name}", ("r", "z"))
+            for component in ("r", "z"):
+                fields[f"{name}_{component}"] = self.formula(
+                    part.get(component, "0"), f"initial.{name}.{component}", constants, ("z", "r")
+                )
+        return Initial(**fields)
+
+    def output(self, data: Any, constants: Mapping[str, float], fluid: ModelSpec | None, layers: list[LayerSpec]) -> Output:
+        values, problems = check_params(data, OUTPUT, "output", extra=("probes",))
+        self.add(problems)
+        specs = data.get("probes", []) if isinstance(data, Mapping) else []
+        if not isinstance(specs, list):
+            self.problems.append(Problem("output.probes", specs, "expected an array of tables"))
+            specs = []
+        lines = sum(not layer.thin for layer in layers)
+        probes, names = [], set()
+        for i, spec in enumerate(specs):
+            probe = self.probe(spec, f"output.probes[{i}]", constants, fluid, lines)
+            if probe is None:
+                continue
+            if probe.name in names:
+                self.problems.append(Problem(f"output.probes[{i}].name", probe.name, "a probe of that name exists already"))
+            names.add(probe.name)
+            probes.append(probe)
+        return Output(every=values.get("every", 0), probes=tuple(probes))
+
+    def probe(self, spec: Any, path: str, constants: Mapping[str, float], fluid: ModelSpec | None, lines: int) -> Probe | None:
+        values, problems = check_params(spec, PROBE, path)
+        if problems:
+            self.add(problems)
+            return None
+        q, z, r, line = values["quantity"], values["z"], values["r"], values["line"]
+        L, R, H = constants["L"], constants["R"], constants["H"]
+        found = []
+        if fluid is None and q in FLUID_QUANTITIES:
+            found.append(Problem(f"{path}.quantity", q, "a fluid quantity, but the case has no fluid"))
+        if not 0.0 <= z <= L:
+            found.append(Problem(f"{path}.z", z, f"expected a position in [0, L = {L:g}] (cm)"))
+        if q in POINT_QUANTITIES:
+            lo, hi = (0.0, R) if q in FLUID_QUANTITIES else (R, R + H)
+            if r is None:
+                found.append(Problem(f"{path}.r", MISSING, f"missing; {q} is measured at a point (z, r), r in [{lo:g}, {hi:g}] (cm)"))
+            elif self.stack_known and not lo - 1e-12 * hi <= r <= hi * (1 + 1e-12):
+                found.append(Problem(f"{path}.r", r, f"expected a radius in [{lo:g}, {hi:g}] (cm) for {q}"))
+        elif r is not None:
+            found.append(Problem(f"{path}.r", r, f"{q} takes no r", "r applies to " + ", ".join(POINT_QUANTITIES)))
+        if q in LINE_QUANTITIES:
+            line = 0 if line is None else line
+            if self.stack_known and line > lines:
+                found.append(Problem(f"{path}.line", line, f"expected an interface line 0..{lines} (0 = lumen)"))
+        elif line is not None:
+            found.append(Problem(f"{path}.line", line, f"{q} takes no line", "line applies to eta and v"))
+        self.add(found)
+        if found:
+            return None
+        name = values["name"] or (f"{q}_z{z:g}" + (f"_r{r:g}" if r is not None else "") + (f"_line{line}" if line else ""))
+        return Probe(name=name, quantity=q, z=z, r=r, line=line or 0)

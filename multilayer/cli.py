@@ -1,0 +1,170 @@
+"""The ``multilayer`` command: run, validate, plugins.
+
+Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
+(the problems on stderr, one per line, without a traceback).
+
+    multilayer validate cases/pulse.toml --set time.dt=5e-5
+    multilayer run cases/pulse.toml --out results/pulse
+    multilayer plugins --plugin my_layer.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+import traceback
+from collections.abc import Sequence
+from pathlib import Path
+from types import ModuleType
+
+from multilayer import __version__
+from multilayer.problems import CaseError
+from multilayer.registry import Registry, RegistryError
+
+OK, FAILED, INVALID = 0, 1, 2
+
+
+def import_plugin(spec: str) -> ModuleType:
+    """Import a plugin module from a dotted name or a ``.py`` file (the current folder is searched).
+
+    Raises RegistryError when it cannot be imported.
+    """
+    try:
+        if spec.endswith(".py"):
+            path = Path(spec)
+            if not path.is_file():
+                raise FileNotFoundError(f"no such file {spec!r}")
+            module_spec = importlib.util.spec_from_file_location(path.stem, path)
+            module = importlib.util.module_from_spec(module_spec)
+            module_spec.loader.exec_module(module)
+            return module
+        if "" not in sys.path and str(Path.cwd()) not in sys.path:
+            sys.path.insert(0, str(Path.cwd()))
+        return importlib.import_module(spec)
+    except Exception as exc:  # a user's module: any error means "cannot load it"
+        raise RegistryError(f"--plugin {spec}: cannot import it ({type(exc).__name__}: {exc})") from None
+
+
+def load_registry(plugins: Sequence[str] = ()) -> Registry:
+    """Installed plugins plus the ``--plugin`` modules."""
+    return Registry.load(extra=[import_plugin(p) for p in plugins])
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="multilayer", description="Fluid–multi-layered-structure interaction from TOML case files."
+    )
+    parser.add_argument("--version", action="version", version=f"multilayer {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def common(p: argparse.ArgumentParser, case: bool = True) -> None:
+        if case:
+            p.add_argument("case", type=Path, help="the TOML case file")
+            p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                           help="override a value of the case, e.g. time.dt=5e-5 or layers[0].young=1e6")
+        p.add_argument("--plugin", dest="plugins", action="append", default=[], metavar="MODULE",
+                       help="also load plugins from this module (dotted name or .py file)")
+
+    run = commands.add_parser("run", help="run a case, writing results to a folder")
+    common(run)
+    run.add_argument("--out", type=Path, required=True, help="results folder (created)")
+    common(commands.add_parser("validate", help="check a case file and report every problem"))
+    plugins = commands.add_parser("plugins", help="list the available models, or one model's parameters")
+    plugins.add_argument("name", nargs="?", help="show the parameters of this model")
+    common(plugins, case=False)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``multilayer`` console script; returns the exit code."""
+    args = _parser().parse_args(argv)
+    try:
+        registry = load_registry(args.plugins)
+        if args.command == "plugins":
+            return _plugins(registry, args.name)
+        from multilayer.casefile import load_case
+
+        case = load_case(args.case, args.overrides, registry)
+    except CaseError as exc:
+        print(f"{args.case}: invalid case", file=sys.stderr)
+        print(str(exc), file=sys.stderr)
+        return INVALID
+    except RegistryError as exc:
+        print(f"plugins: {exc}", file=sys.stderr)
+        return INVALID
+    if args.command == "validate":
+        print(_describe(args.case, case))
+        return OK
+    return _run(case, args.out, registry)
+
+
+def _run(case: object, out: Path, registry: Registry) -> int:
+    from multilayer.run import run_case
+
+    try:
+        result = run_case(case, out, registry)
+    except Exception:  # a bug, not a user mistake: the traceback helps
+        traceback.print_exc()
+        print(f"run failed; partial results in {out}", file=sys.stderr)
+        return FAILED
+    if result.status != "ok":
+        print(f"run failed: {result.reason}", file=sys.stderr)
+        return FAILED
+    print(f"done: results in {out}")
+    return OK
+
+
+def _describe(path: Path, case: object) -> str:
+    layers = ", ".join(f"{layer.model} ({'thin' if layer.thin else 'thick'})" for layer in case.layers) or "none"
+    fluid = case.fluid.model if case.fluid is not None else "none"
+    g, t = case.geometry, case.time
+    return "\n".join([
+        f"{path}: valid" + (f" — {case.title}" if case.title else ""),
+        f"  channel  L = {g.length:g} cm, R = {g.radius:g} cm; mesh {case.mesh.nz} x {case.mesh.nr}, order {case.mesh.order}",
+        f"  time     {t.steps} steps of {t.dt:g} s to {t.end:g} s",
+        f"  fluid    {fluid}",
+        f"  layers   {layers}",
+        f"  coupler  {case.coupler.model}",
+        f"  digest   {case.digest[:16]}",
+    ])
+
+
+def _plugins(registry: Registry, name: str | None) -> int:
+    entries = registry.all()
+    if name is not None:
+        chosen = [r for r in entries if r.name == name]
+        if not chosen:
+            from multilayer.registry import nearest
+
+            hint = nearest(name, [r.name for r in entries])
+            print(f"no plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else ""), file=sys.stderr)
+            return INVALID
+        for entry in chosen:
+            print(f"{entry.kind} {entry.name} ({entry.package} {entry.version}): {entry.record.doc}")
+            rows = [("name", "unit", "default", "accepts", "doc")]
+            rows += [_param_row(p) for p in entry.record.params]
+            print(_table(rows))
+        return OK
+    rows = [("kind", "name", "package", "version", "doc")]
+    rows += [(r.kind, r.name, r.package, r.version, r.record.doc.strip().splitlines()[0] if r.record.doc.strip() else "")
+             for r in entries]
+    print(_table(rows))
+    return OK
+
+
+def _param_row(param: object) -> tuple[str, ...]:
+    from multilayer.problems import describe
+
+    default = "required" if param.required else repr(param.default)
+    return (param.name, param.unit, default, describe(param).split(" (")[0], param.doc)
+
+
+def _table(rows: list[tuple[str, ...]]) -> str:
+    widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

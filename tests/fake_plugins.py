@@ -1,0 +1,73 @@
+"""Stand-in plugins with the built-ins' names and parameter schemas.
+
+They let the case-file tests check validation without depending on the
+real models: ``Registry.load(extra=[fake_plugins], entry_points=False)``.
+"""
+
+from __future__ import annotations
+
+import attrs
+
+from multilayer.hookspecs import hookimpl
+from multilayer.records import CouplerPlugin, FluidPlugin, LayerPlugin, Param
+
+DENSITY = Param("density", "ρ", "g/cm³", gt=0.0, doc="density")
+THICKNESS = Param("thickness", "h", "cm", gt=0.0, doc="thickness")
+YOUNG = Param("young", "E", "dyn/cm²", gt=0.0, doc="Young's modulus")
+POISSON = Param("poisson", "σ", gt=-1.0, lt=0.5, doc="Poisson ratio")
+
+
+@attrs.frozen
+class Model:
+    """Any fake model: its parameters, nothing else."""
+
+    params: dict = attrs.field(factory=dict)
+
+
+def model(**params: object) -> Model:
+    return Model(params)
+
+
+@attrs.frozen
+class Band:
+    thickness: float
+
+
+def band(**params: object) -> Band:
+    if params["young"] > 1e12:
+        raise ValueError("young and poisson give no positive wave speed")
+    return Band(params["thickness"])
+
+
+class NeedsFluid:
+    def check_case(self, case: object) -> list[str]:
+        return [] if case.fluid is not None else ["kinematic-splitting needs a fluid"]
+
+
+@hookimpl
+def multilayer_layers():
+    return [
+        LayerPlugin("wave-membrane", model, (DENSITY, THICKNESS, Param("tension", "C1", "dyn", gt=0.0)), "membrane"),
+        LayerPlugin(
+            "koiter-shell",
+            model,
+            (DENSITY, THICKNESS, YOUNG, POISSON, Param("viscosity", "D1", "dyn·s/cm²", default=0.0, ge=0.0)),
+            "shell",
+        ),
+        LayerPlugin("linear-elastic", band, (DENSITY, THICKNESS, YOUNG, POISSON), "band", thin=False),
+    ]
+
+
+@hookimpl
+def multilayer_fluids():
+    params = (DENSITY, Param("viscosity", "μ", "P", gt=0.0))
+    return [FluidPlugin("navier-stokes", model, params, "NS"), FluidPlugin("stokes", model, params, "Stokes")]
+
+
+@hookimpl
+def multilayer_couplers():
+    return [
+        CouplerPlugin("structure-only", model, (), "walls alone"),
+        CouplerPlugin("kinematic-splitting", NeedsFluid, (), "the scheme"),
+        CouplerPlugin("fluid-only", model, (), "rigid walls"),
+    ]

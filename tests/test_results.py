@@ -1,0 +1,81 @@
+import csv
+import json
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+from multilayer.results import ResultsFolder
+
+
+def read_rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_series_rows_are_on_disk_as_soon_as_appended(tmp_path):
+    out = ResultsFolder(tmp_path / "a" / "b")
+    series = out.series(["step", "t", "eta"])
+    assert read_rows(out.path / "series.csv") == []  # the header alone
+    values = [0.1, 1 / 3, np.float64(2e-17)]
+    for step, eta in enumerate(values, start=1):
+        series.append({"step": step, "t": step * 1e-4, "eta": eta})
+        rows = read_rows(out.path / "series.csv")  # no close needed
+        assert len(rows) == step
+    assert [float(r["eta"]) for r in rows] == [float(v) for v in values]  # shortest repr round-trips exactly
+    assert [int(r["step"]) for r in rows] == [1, 2, 3]
+
+
+def test_series_missing_column_is_empty_and_unknown_is_an_error(tmp_path):
+    series = ResultsFolder(tmp_path).series(["t", "p"])
+    series.append({"t": 1.0})
+    assert read_rows(tmp_path / "series.csv") == [{"t": "1.0", "p": ""}]
+    with pytest.raises(KeyError, match="pp"):
+        series.append({"t": 2.0, "pp": 1.0})
+
+
+def square():
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    return points, {"triangle": np.array([[0, 1, 2], [1, 3, 2]])}
+
+
+def pvd_entries(path):
+    root = ET.parse(path).getroot()
+    return [(float(d.get("timestep")), d.get("file")) for d in root.iter("DataSet")]
+
+
+def test_snapshots_are_readable_and_collected(tmp_path):
+    out = ResultsFolder(tmp_path)
+    points, cells = square()
+    times = [0.0, 1e-3, 2.5e-3]
+    for step, t in enumerate(times):
+        disp = np.column_stack([np.zeros(4), np.full(4, t)])
+        out.snapshot("wall", points, cells, {"displacement": disp, "p": np.arange(4.0) * step}, t=t, step=step * 10)
+        # the collection is valid after every snapshot
+        assert pvd_entries(tmp_path / "wall.pvd") == [(times[i], f"wall_{i * 10:06d}.vtu") for i in range(step + 1)]
+    mesh = meshio.read(tmp_path / "wall_000020.vtu")
+    assert mesh.points.shape == (4, 3)
+    assert mesh.cells_dict["triangle"].tolist() == [[0, 1, 2], [1, 3, 2]]
+    assert mesh.point_data["displacement"].shape == (4, 3)  # padded: ParaView sees a vector
+    np.testing.assert_allclose(mesh.point_data["displacement"][:, 1], 2.5e-3)
+    np.testing.assert_allclose(mesh.point_data["p"], np.arange(4.0) * 2)
+
+
+def test_line_snapshots_and_separate_collections(tmp_path):
+    out = ResultsFolder(tmp_path)
+    points = np.column_stack([np.linspace(0, 6, 4), np.full(4, 0.5), np.zeros(4)])
+    out.snapshot("line", points, {"line": np.array([[0, 1], [1, 2], [2, 3]])}, {"eta": np.ones(4)}, t=0.5, step=3)
+    out.snapshot("wall", *square(), t=0.5, step=3)
+    assert meshio.read(tmp_path / "line_000003.vtu").cells_dict["line"].shape == (3, 2)
+    assert pvd_entries(tmp_path / "line.pvd") == [(0.5, "line_000003.vtu")]
+    assert pvd_entries(tmp_path / "wall.pvd") == [(0.5, "wall_000003.vtu")]
+
+
+def test_summary_converts_numpy(tmp_path):
+    out = ResultsFolder(tmp_path)
+    path = out.write_summary({"status": "ok", "steps": np.int64(3), "max": np.float32(0.5),
+                              "eta": np.array([1.0, 2.0]), "where": tmp_path})
+    data = json.loads(path.read_text())
+    assert data == {"status": "ok", "steps": 3, "max": 0.5, "eta": [1.0, 2.0], "where": str(tmp_path)}
+    assert path.read_text().startswith('{\n  "status"')  # indent 2
