@@ -1,1 +1,24 @@
-"""Placeholder: being written (do not ship)."""
+"""``stokes``: the unsteady Stokes fluid — ``navier-stokes`` without the advection terms.
+
+Everything else of SCHEME §3 A2 stays, the moving-domain term ρ_f/2 ∫ (v/R) u·q
+included: it belongs to the moving domain, not to advection.
+"""
+
+from __future__ import annotations
+
+from multilayer.fluid import PARAMS, Stokes
+from multilayer.hookspecs import hookimpl
+from multilayer.records import FluidPlugin
+
+
+@hookimpl
+def multilayer_fluids() -> list[FluidPlugin]:
+    """The ``stokes`` fluid."""
+    return [
+        FluidPlugin(
+            name="stokes",
+            factory=Stokes,
+            params=PARAMS,
+            doc="Unsteady Stokes on the moving channel (Navier–Stokes without advection).",
+        )
+    ]

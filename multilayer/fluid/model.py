@@ -1,0 +1,180 @@
+"""The incompressible fluid of the channel: one class, advection on or off.
+
+``navier-stokes`` and ``stokes`` are the same model of SCHEME §3 A2; Stokes
+drops the two advection terms and keeps everything else, the moving-domain
+term included.  The model holds its physical parameters; :meth:`setup`
+attaches a discretization (a :class:`multilayer.fluid.step.FluidStep`) on
+which the other methods act.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.fluid import probes
+from multilayer.fluid.ale import ALEFields
+from multilayer.fluid.channel import Channel
+from multilayer.fluid.ledger import fluid_kinetic
+from multilayer.fluid.step import FluidState, FluidStep, StepResult
+from multilayer.interfaces import Fluid, LineSpace
+from multilayer.records import Param
+
+#: The parameters of every channel fluid, for its plugin record.
+PARAMS = (
+    Param("density", "ρ_f", "g/cm³", gt=0.0, doc="density of the fluid"),
+    Param("viscosity", "μ", "P = g/(cm·s)", gt=0.0, doc="dynamic viscosity of the fluid"),
+)
+
+
+class ChannelFluid(Fluid):
+    """An incompressible Newtonian fluid in the 2D channel, on the ALE reference domain.
+
+    Parameters
+    ----------
+    density : float
+        ρ_f (g/cm³), > 0.
+    viscosity : float
+        μ (poise, g/(cm·s)), > 0.
+
+    Examples
+    --------
+    >>> fluid = NavierStokes(density=1.0, viscosity=0.035)
+    >>> step = fluid.setup(length=1.0, radius=0.5, nz=2, nr=2, order=2, dt=1e-3, wall="rigid")
+    >>> state = fluid.initial_state()
+    >>> res = fluid.step(state, p_in=10.0, p_out=0.0)
+    >>> res.state.u.shape == (step.channel.nu,), abs(res.energy["a2.residual"]) < 1e-12
+    (True, True)
+    """
+
+    #: whether the advection terms of A2 are assembled
+    advection: ClassVar[bool] = True
+
+    def __init__(self, density: float, viscosity: float):
+        for name, value in (("density", density), ("viscosity", viscosity)):
+            if not value > 0.0:
+                raise ValueError(f"fluid {name} must be > 0, got {value!r}")
+        self.density = float(density)
+        self.viscosity = float(viscosity)
+        self._discrete: FluidStep | None = None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r})"
+
+    def setup(
+        self,
+        length: float,
+        radius: float,
+        nz: int,
+        nr: int,
+        order: int = 2,
+        grading: float = 1.0,
+        dt: float = 1e-4,
+        wall: str = "coupled",
+        solver: str = "superlu",
+        line: LineSpace | None = None,
+    ) -> FluidStep:
+        """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``, step ``dt`` (s).
+
+        ``wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
+        :mod:`multilayer.fluid.step`); ``line`` is the interface line's space
+        when the caller already has it.  Returns the step object, which is
+        also kept on the fluid for the methods below.
+        """
+        channel = Channel.build(length, radius, nz, nr, order, grading, line)
+        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, dt, wall, solver)
+        return self._discrete
+
+    @property
+    def discrete(self) -> FluidStep:
+        if self._discrete is None:
+            raise RuntimeError("call fluid.setup(...) before using the discretization")
+        return self._discrete
+
+    @property
+    def channel(self) -> Channel:
+        return self.discrete.channel
+
+    @property
+    def line(self) -> LineSpace:
+        """The interface line r = R; the fluid's wall u_r DOFs are its DOFs."""
+        return self.channel.line
+
+    def initial_state(
+        self, velocity: Callable[[np.ndarray, np.ndarray], tuple] | None = None, eta: np.ndarray | None = None
+    ) -> FluidState:
+        """Rest, or the interpolant of ``velocity(z, r) -> (u_z, u_r)`` given in the physical domain of ``eta``."""
+        ch = self.channel
+        eta = np.zeros(ch.line.ndofs) if eta is None else eta
+        u = np.zeros(ch.nu)
+        if velocity is not None:
+            R = ch.radius
+
+            def on_reference(zh, rh):
+                return velocity(zh, rh * (R + probes.wall_displacement(ch, eta, zh)) / R)
+
+            u = ch.interpolate(on_reference)
+        return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u))
+
+    def step(
+        self,
+        state: FluidState,
+        eta: np.ndarray | None = None,
+        v_half: np.ndarray | None = None,
+        p_in: float = 0.0,
+        p_out: float = 0.0,
+        robin_mass: sp.spmatrix | None = None,
+    ) -> StepResult:
+        """One A2 step; see :meth:`multilayer.fluid.step.FluidStep.step`."""
+        return self.discrete.step(state, eta, v_half, p_in, p_out, robin_mass)
+
+    def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+        ch = self.channel
+        eta = np.zeros(ch.line.ndofs) if eta is None else eta
+        fields = ALEFields.at(ch, eta, np.zeros_like(eta))
+        return fluid_kinetic(ch, self.density, fields.J, state.u)
+
+    def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float) -> float:
+        """Volume flux through the section at z (cm²/s)."""
+        return probes.flow_rate(self.channel, state.u, self._eta(eta), z)
+
+    def velocity(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array (cm/s)."""
+        return probes.velocity(self.channel, state.u, self._eta(eta), z, r)
+
+    def pressure(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """Pressure at physical points (dyn/cm²)."""
+        return probes.pressure(self.channel, state.p, self._eta(eta), z, r)
+
+    def snapshot(self, state: FluidState, eta: np.ndarray | None = None):
+        """(points, triangles, point_data) in the deformed geometry; see :func:`probes.snapshot`."""
+        return probes.snapshot(self.channel, state.u, state.p, self._eta(eta))
+
+    def _eta(self, eta: np.ndarray | None) -> np.ndarray:
+        return np.zeros(self.line.ndofs) if eta is None else eta
+
+
+class NavierStokes(ChannelFluid):
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection)."""
+
+    advection = True
+
+
+class Stokes(ChannelFluid):
+    """Unsteady Stokes: Navier–Stokes without the advection terms."""
+
+    advection = False
+
+
+def wall_motion(line: LineSpace, eta: Callable[[float, np.ndarray], np.ndarray], t: float, dt: float):
+    """(ηⁿ, v^{n+½}) on the line for a prescribed law ``eta(t, z)`` (cm).
+
+    v^{n+½} = (η(t+Δt) − η(t))/Δt of the nodal interpolants, so that
+    ηⁿ + Δt v^{n+½} = η^{n+1} holds exactly (SCHEME §4).
+    """
+    now, then = eta(t, line.z), eta(t + dt, line.z)
+    return np.asarray(now, dtype=float), (np.asarray(then, dtype=float) - now) / dt

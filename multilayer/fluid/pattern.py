@@ -1,0 +1,84 @@
+"""A sparsity pattern fixed at setup, filled with new values every step.
+
+The A2 matrix changes every step but its nonzero structure does not.  The
+pattern is built once from the (row, column) lists of every term; after
+that a step only computes values and sums them into the CSR data array
+with one ``bincount`` — no sorting, no duplicate summation, no new index
+arrays.  Sub-matrices (the free/fixed blocks of a Dirichlet elimination)
+are index maps into the same data array.  This is also the place where a
+backend that separates symbolic from numeric factorization (UMFPACK,
+MUMPS, PARDISO) would keep its symbolic analysis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class Pattern:
+    """The CSR structure of the union of several COO (row, column) lists.
+
+    >>> p = Pattern((2, 2), [(np.array([0, 1, 0]), np.array([0, 1, 0]))])
+    >>> slot = p.slots(np.array([0, 1, 0]), np.array([0, 1, 0]))
+    >>> p.matrix(p.fill([(slot, np.array([1.0, 2.0, 3.0]))])).toarray().tolist()
+    [[4.0, 0.0], [0.0, 2.0]]
+    """
+
+    def __init__(self, shape: tuple[int, int], entries: list[tuple[np.ndarray, np.ndarray]]):
+        self.shape = shape
+        keys = np.unique(np.concatenate([self._key(r, c) for r, c in entries]))
+        self._keys = keys
+        rows = keys // shape[1]
+        self.indices = (keys % shape[1]).astype(np.int32)
+        self.indptr = np.searchsorted(rows, np.arange(shape[0] + 1)).astype(np.int32)
+
+    def _key(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        return np.asarray(rows, dtype=np.int64) * self.shape[1] + np.asarray(cols, dtype=np.int64)
+
+    @property
+    def nnz(self) -> int:
+        return len(self._keys)
+
+    def slots(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Positions of the entries (rows, cols) in the data array; all must be in the pattern."""
+        keys = self._key(rows, cols)
+        pos = np.searchsorted(self._keys, keys)
+        pos = np.clip(pos, 0, self.nnz - 1)
+        if not np.array_equal(self._keys[pos], keys):
+            raise ValueError("entries outside the fixed sparsity pattern")
+        return pos
+
+    def fill(self, terms: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        """The data array of Σ values summed at their slots, for (slots, values) pairs."""
+        slots = np.concatenate([s for s, _ in terms])
+        values = np.concatenate([np.ravel(v) for _, v in terms])
+        return np.bincount(slots, weights=values, minlength=self.nnz)
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """The CSR matrix of this pattern with ``data`` (arrays shared, not copied)."""
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape, copy=False)
+
+    def block(self, rows: np.ndarray, cols: np.ndarray) -> Block:
+        """The sub-matrix [rows][:, cols] as a :class:`Block` of this pattern."""
+        tag = self.matrix(np.arange(1, self.nnz + 1, dtype=np.float64))
+        sub = tag[rows][:, cols].tocsr()
+        sub.sort_indices()
+        return Block(sub.indices, sub.indptr, sub.data.astype(np.int64) - 1, sub.shape)
+
+
+class Block:
+    """A sub-matrix of a :class:`Pattern`: its own CSR structure and where its data sits in the parent's.
+
+    >>> p = Pattern((2, 2), [(np.array([0, 0, 1]), np.array([0, 1, 1]))])
+    >>> b = p.block(np.array([0]), np.array([1]))
+    >>> b.matrix(np.array([1.0, 2.0, 3.0])).toarray().tolist()
+    [[2.0]]
+    """
+
+    def __init__(self, indices: np.ndarray, indptr: np.ndarray, take: np.ndarray, shape: tuple[int, int]):
+        self.indices, self.indptr, self.take, self.shape = indices, indptr, take, shape
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """The block of the parent matrix whose CSR data is ``data``."""
+        return sp.csr_matrix((data[self.take], self.indices, self.indptr), shape=self.shape)

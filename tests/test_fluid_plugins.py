@@ -1,0 +1,79 @@
+"""The ``navier-stokes`` and ``stokes`` plugins and the fluid API's errors."""
+
+import numpy as np
+import pytest
+from skfem import BilinearForm, asm
+
+from multilayer.fluid import ChannelFluid, NavierStokes, Stokes
+from multilayer.interfaces import Fluid
+from multilayer.registry import Registry
+
+
+@pytest.mark.parametrize("name, cls", [("navier-stokes", NavierStokes), ("stokes", Stokes)])
+def test_registered_with_density_and_viscosity(name, cls):
+    record = Registry.load().get("fluid", name).record
+    assert [p.name for p in record.params] == ["density", "viscosity"]
+    assert all(p.gt == 0.0 and p.required for p in record.params)
+    fluid = record.factory(density=1.06, viscosity=0.035)
+    assert isinstance(fluid, cls) and isinstance(fluid, ChannelFluid) and isinstance(fluid, Fluid)
+    assert (fluid.density, fluid.viscosity) == (1.06, 0.035)
+
+
+def test_the_two_fluids_differ_only_in_advection():
+    assert NavierStokes.advection and not Stokes.advection
+    assert NavierStokes.__mro__[1] is Stokes.__mro__[1] is ChannelFluid
+
+
+@pytest.mark.parametrize("kwargs", [{"density": 0.0, "viscosity": 1.0}, {"density": 1.0, "viscosity": -1.0}])
+def test_rejects_non_positive_parameters(kwargs):
+    with pytest.raises(ValueError, match="must be > 0"):
+        Stokes(**kwargs)
+
+
+def setup(wall, order=2):
+    fluid = NavierStokes(1.0, 0.035)
+    fluid.setup(1.0, 0.5, nz=2, nr=2, order=order, dt=1e-3, wall=wall)
+    return fluid
+
+
+def test_line_is_the_canonical_interface_line():
+    fluid = setup("coupled")
+    assert fluid.line.order == 2 and fluid.line.radius == 0.5 and fluid.line.ndofs == 5
+    ch = fluid.channel
+    wall_dof = ch.prolongation.tocsc().indices  # velocity DOF of each line DOF
+    assert np.allclose(ch.velocity.doflocs[:, wall_dof], [fluid.line.z, np.full(5, 0.5)])
+    assert set(wall_dof) == set(ch.wall_r) and np.all(wall_dof % 2 == 1)  # u_r DOFs
+
+
+def test_wall_mode_errors():
+    with pytest.raises(ValueError, match="wall mode"):
+        setup("elastic")
+    rigid = setup("rigid")
+    state = rigid.initial_state()
+    with pytest.raises(ValueError, match="rigid wall does not move"):
+        rigid.step(state, eta=np.full(rigid.line.ndofs, 0.01))
+    prescribed = setup("prescribed")
+    with pytest.raises(ValueError, match="vanish at z = 0"):
+        prescribed.step(state, np.zeros(5), np.ones(5))
+    with pytest.raises(ValueError, match="Robin mass"):
+        prescribed.step(state, robin_mass=np.eye(5))
+    with pytest.raises(ValueError, match="interface line"):
+        setup("coupled").step(state, eta=np.zeros(3))
+    with pytest.raises(ValueError, match="5 × 5"):
+        setup("coupled").step(state, robin_mass=np.eye(3))
+    with pytest.raises(ValueError, match="closes the channel"):
+        setup("coupled").step(state, eta=-np.ones(5))
+    with pytest.raises(RuntimeError, match="setup"):
+        Stokes(1.0, 1.0).initial_state()
+    with pytest.raises(ValueError, match="order"):
+        Stokes(1.0, 1.0).setup(1.0, 0.5, 2, 2, order=3)
+
+
+def test_probes_on_a_deformed_channel():
+    fluid = setup("coupled")
+    eta = 0.1 * np.sin(np.pi * fluid.line.z)
+    state = fluid.initial_state(lambda z, r: (1.0 + 0 * r, 0 * r), eta)  # plug flow in the physical domain
+    assert fluid.flow_rate(state, eta, 0.5) == pytest.approx(0.6, rel=1e-12)  # (R + η(½)) · 1
+    assert np.allclose(fluid.velocity(state, eta, [0.5, 0.5], [0.0, 0.59]), [[1.0, 1.0], [0.0, 0.0]])
+    area = 0.5 + float(np.sum(asm(BilinearForm(lambda u, v, w: u * v), fluid.line.basis) @ eta))
+    assert fluid.kinetic_energy(state, eta) == pytest.approx(0.5 * area, rel=1e-12)
