@@ -62,8 +62,8 @@ def _snapshot(scene: Scene, results: ResultsFolder, t: float, step: int) -> None
     if scene.wall is not None:
         pts, cells, data = scene.wall_snapshot()
         results.snapshot("wall", pts, cells, data, t, step)
-    if scene.fluid is not None and scene.fluid_state is not None and hasattr(scene.fluid, "snapshot"):
-        pts, cells, data = scene.fluid.snapshot(scene.fluid_state, scene)
+    if scene.fluid_state is not None:
+        pts, cells, data = scene.fluid_snapshot()
         results.snapshot("fluid", pts, cells, data, t, step)
 
 
@@ -117,7 +117,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
         "dt": case.time.dt,
         "wall_time_s": time.perf_counter() - wall_t0,
         "timings": _timings(scene),
-        "factorizations": scene.stats.factorizations if scene else 0,
+        "factorizations": _factorizations(scene),
         "energy": {"max_relative_residual": max_rel},
     }
     results.write_summary(summary)
@@ -136,12 +136,30 @@ def _plugin_versions(case: Case, registry: Registry) -> dict[str, dict[str, str]
     return out
 
 
+def _fluid_step(scene: Scene | None):
+    return scene.fluid.discrete if scene is not None and scene.fluid_state is not None else None
+
+
+def _factorizations(scene: Scene | None) -> dict[str, int]:
+    out = {"wall": scene.stats.factorizations if scene else 0}
+    if _fluid_step(scene) is not None:
+        out["fluid"] = _fluid_step(scene).stats.factorizations
+    return out
+
+
 def _timings(scene: Scene | None) -> dict[str, float]:
+    """Seconds per phase, wall and fluid together."""
     if scene is None:
         return {}
-    return {
+    out = {
         "assembly": scene.timings.get("assembly", 0.0),
         "factorization": scene.stats.factorization_s,
         "solves": scene.stats.solve_s,
         "output": scene.timings.get("output", 0.0),
     }
+    fluid = _fluid_step(scene)
+    if fluid is not None:
+        out["assembly"] += fluid.assembly_s
+        out["factorization"] += fluid.stats.factorization_s
+        out["solves"] += fluid.stats.solve_s
+    return out

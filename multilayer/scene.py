@@ -40,6 +40,7 @@ class Scene:
     stack: Stack | None = None
     wall_state: WallState | None = None
     fluid_state: Any = None
+    fluid_eta: np.ndarray | None = None  #: η of the fluid's current domain, on the fluid's line
     stats: SolverStats = attrs.field(factory=SolverStats)
     timings: dict[str, float] = attrs.field(factory=lambda: {"assembly": 0.0, "output": 0.0})
 
@@ -61,6 +62,17 @@ class Scene:
             scene.wall_state = WallState(zero_fixed(scene.stack, d0), zero_fixed(scene.stack, v0))
         scene.timings["assembly"] += time.perf_counter() - t0
         return scene
+
+    def setup_fluid(self, wall_mode: str) -> None:
+        """Discretize the fluid for ``wall_mode`` (``coupled``, ``rigid``, ``prescribed``) and start it at rest."""
+        t0 = time.perf_counter()
+        g, m = self.case.geometry, self.case.mesh
+        line = self.wall.lines[0] if self.wall is not None else None
+        self.fluid.setup(g.length, g.radius, m.nz, m.nr, m.order, m.grading, self.dt, wall_mode,
+                         self.case.solver, line=line)
+        self.fluid_state = self.fluid.initial_state()
+        self.fluid_eta = np.zeros(self.fluid.line.ndofs)
+        self.timings["assembly"] += time.perf_counter() - t0
 
     @property
     def dt(self) -> float:
@@ -85,8 +97,8 @@ class Scene:
         if self.wall is not None:
             out["wall"] = int(self.wall.ndofs)
             out["wall_free"] = int(self.stack.free.size)
-        if self.fluid is not None and hasattr(self.fluid, "ndofs"):
-            out["fluid"] = int(self.fluid.ndofs)
+        if self.fluid_state is not None:
+            out["fluid"] = int(self.fluid.channel.ndofs)
         return out
 
     # -- probes ---------------------------------------------------------------
@@ -96,7 +108,7 @@ class Scene:
         for p in probes:
             if p.quantity in WALL_QUANTITIES:
                 rows[p.name] = self._wall_probe(p)
-            elif self.fluid is not None and hasattr(self.fluid, "probe"):
+            else:
                 rows[p.name] = ("fluid", p)
         return rows
 
@@ -119,10 +131,19 @@ class Scene:
                 _, q, _, row = ev
                 vec = self.wall_state.d
             else:
-                out[name] = float(self.fluid.probe(self.fluid_state, ev[1]))
+                out[name] = self._fluid_probe(ev[1])
                 continue
             out[name] = float((row @ vec)[0])
         return out
+
+    def _fluid_probe(self, p: Probe) -> float:
+        fluid, state, eta = self.fluid, self.fluid_state, self.fluid_eta
+        if p.quantity == "flow_rate":
+            return float(fluid.flow_rate(state, eta, p.z))
+        if p.quantity == "p":
+            return float(fluid.pressure(state, eta, [p.z], [p.r])[0])
+        comp = {"u_z": 0, "u_r": 1}[p.quantity]
+        return float(fluid.velocity(state, eta, [p.z], [p.r])[comp, 0])
 
     # -- snapshots ------------------------------------------------------------
     def wall_snapshot(self) -> tuple[np.ndarray, dict, dict]:
@@ -146,3 +167,13 @@ class Scene:
         disp = np.column_stack([st.d[nd[0]], st.d[nd[1]], np.zeros(mesh.p.shape[1])])
         vel = np.column_stack([st.V[nd[0]], st.V[nd[1]], np.zeros(mesh.p.shape[1])])
         return pts, {"triangle": mesh.t.T}, {"displacement": disp, "velocity": vel}
+
+    def fluid_snapshot(self) -> tuple[np.ndarray, dict, dict]:
+        """The channel in its physical (deformed) place: velocity, pressure, ALE displacement."""
+        pts, tri, data = self.fluid.snapshot(self.fluid_state, self.fluid_eta)
+        return _xyz(pts), {"triangle": tri}, {k: _xyz(v) if np.ndim(v) == 2 else v for k, v in data.items()}
+
+
+def _xyz(a: np.ndarray) -> np.ndarray:
+    """(n, 2) in (z, r) → (n, 3) for VTK."""
+    return np.column_stack([a, np.zeros(len(a))])

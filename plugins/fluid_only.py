@@ -1,1 +1,72 @@
-"""Placeholder: being written (do not ship)."""
+"""``fluid-only``: the fluid in a channel whose wall is rigid or moves as prescribed.
+
+No wall model: with ``loads.wall_motion`` unset the wall is rigid (u = 0 on
+it); with a formula η(t, z) the channel moves with it and the fluid sees
+u = ∂_t η e_r on the wall.  This scene tests the ALE machinery on its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from multilayer import ledger
+from multilayer.hookspecs import hookimpl
+from multilayer.interfaces import Coupler, StepReport
+from multilayer.records import CouplerPlugin
+from multilayer.fluid.model import wall_motion
+
+
+def fluid_ledger_groups(energy: dict[str, float]) -> tuple[dict, dict, dict]:
+    """The A2 terms of a fluid step as ledger groups (stored, work, dissipation)."""
+    stored = {"kinetic.fluid": energy["fluid.kinetic"]}
+    work = {"work.inlet": energy["inlet.work"], "work.outlet": energy["outlet.work"]}
+    dissipation = {
+        "dissipation.viscous.fluid": energy["fluid.viscous_dissipation"],
+        "dissipation.numerical.A2": energy["fluid.numerical_dissipation"] + energy["thin.numerical_dissipation"],
+    }
+    return stored, work, dissipation
+
+
+class FluidOnly(Coupler):
+    def check_case(self, case) -> list[str]:
+        problems = []
+        if case.fluid is None:
+            problems.append("fluid-only needs a fluid: set [fluid] model = \"navier-stokes\" or \"stokes\"")
+        if case.layers:
+            problems.append("fluid-only has a rigid or prescribed wall and no wall layers: remove [[layers]], "
+                            "or choose the coupler 'kinematic-splitting'")
+        return problems
+
+    def evolve(self, scene) -> Iterator[StepReport]:
+        case, fluid, dt = scene.case, scene.fluid, scene.dt
+        motion = case.loads.wall_motion
+        scene.setup_fluid("prescribed" if motion is not None else "rigid")
+        line = fluid.line
+        eta_of = (lambda t, z: motion(t=t, z=z)) if motion is not None else (lambda t, z: 0.0 * z)
+        scene.fluid_eta = np.asarray(eta_of(0.0, line.z), dtype=float)
+        previous = fluid.kinetic_energy(scene.fluid_state, scene.fluid_eta)
+        for n in range(scene.steps):
+            t0, t1 = n * dt, (n + 1) * dt
+            if motion is not None:
+                eta_n, v_half = wall_motion(line, eta_of, t0, dt)
+            else:
+                eta_n = v_half = None
+            res = fluid.step(scene.fluid_state, eta_n, v_half,
+                             case.loads.inlet.average(t0, t1), case.loads.outlet.average(t0, t1))
+            scene.fluid_state = res.state
+            if motion is not None:
+                scene.fluid_eta = eta_n + dt * v_half
+            stored, work, dissipation = fluid_ledger_groups(res.energy)
+            if motion is not None:
+                work["work.wall"] = res.energy["wall.work"]
+            row = ledger.close(stored, previous, work, dissipation)
+            previous = row["energy.total"]
+            yield StepReport(n + 1, t1, row)
+
+
+@hookimpl
+def multilayer_couplers():
+    return [CouplerPlugin(name="fluid-only", factory=FluidOnly,
+                          doc="The fluid alone: rigid wall, or a wall moved by loads.wall_motion.")]
