@@ -190,12 +190,57 @@ class ThickLayer(Layer):
 class Fluid(ABC):
     """An incompressible fluid in the channel under the wall (SCHEME §3, step A2).
 
-    Concrete fluids are built in ``multilayer.fluid``; this is the contract the
-    couplers rely on.
+    The couplers rely on exactly these methods; ``multilayer.fluid.model.ChannelFluid``
+    implements them on the ALE reference channel.  Line vectors (η, v) are in
+    the numbering of :attr:`line`, the interface line r = R shared with the wall.
     """
 
-    density: float
-    viscosity: float
+    density: float  #: ρ_f (g/cm³)
+    viscosity: float  #: μ (poise)
+
+    @abstractmethod
+    def setup(self, length: float, radius: float, nz: int, nr: int, order: int = 2, grading: float = 1.0,
+              dt: float = 1e-4, wall: str = "coupled", solver: str = "superlu",
+              line: LineSpace | None = None) -> Any:
+        """Discretize for a wall mode ``coupled``, ``rigid`` or ``prescribed``."""
+
+    @property
+    @abstractmethod
+    def line(self) -> LineSpace:
+        """The interface line whose DOFs are the fluid's wall u_r DOFs."""
+
+    @abstractmethod
+    def initial_state(self) -> Any:
+        """The fluid at rest."""
+
+    @abstractmethod
+    def step(self, state: Any, eta: np.ndarray | None = None, v_half: np.ndarray | None = None,
+             p_in: float = 0.0, p_out: float = 0.0, robin_mass: sp.spmatrix | None = None) -> Any:
+        """One A2 step on the domain of ``eta`` with the wall velocity ``v_half``.
+
+        Returns an object with ``state`` (its ``v`` the new wall velocity) and
+        ``energy`` (the terms of the A2 identity).
+        """
+
+    @abstractmethod
+    def kinetic_energy(self, state: Any, eta: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+
+    @abstractmethod
+    def flow_rate(self, state: Any, eta: np.ndarray | None, z: float) -> float:
+        """Volume flux through the section at z (cm²/s)."""
+
+    @abstractmethod
+    def velocity(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array."""
+
+    @abstractmethod
+    def pressure(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """Pressure at physical points."""
+
+    @abstractmethod
+    def snapshot(self, state: Any, eta: np.ndarray | None = None) -> tuple:
+        """(points (n, 2) in the deformed channel, triangles, point data)."""
 
 
 @attrs.frozen
