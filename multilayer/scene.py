@@ -13,7 +13,6 @@ from typing import Any
 
 import attrs
 import numpy as np
-import scipy.sparse as sp
 
 from multilayer.case import Case, Probe
 from multilayer.interfaces import Coupler, Fluid, Layer
@@ -81,6 +80,12 @@ class Scene:
     @property
     def steps(self) -> int:
         return self.case.time.steps
+
+    def windows(self):
+        """(n, tⁿ, tⁿ⁺¹) for every step of the run."""
+        dt = self.dt
+        for n in range(self.steps):
+            yield n, n * dt, (n + 1) * dt
 
     # -- wall quantities ----------------------------------------------------
     def eta(self, line: int = 0) -> np.ndarray:

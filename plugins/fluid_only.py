@@ -47,8 +47,7 @@ class FluidOnly(Coupler):
         eta_of = (lambda t, z: motion(t=t, z=z)) if motion is not None else (lambda t, z: 0.0 * z)
         scene.fluid_eta = np.asarray(eta_of(0.0, line.z), dtype=float)
         previous = fluid.kinetic_energy(scene.fluid_state, scene.fluid_eta)
-        for n in range(scene.steps):
-            t0, t1 = n * dt, (n + 1) * dt
+        for n, t0, t1 in scene.windows():
             if motion is not None:
                 eta_n, v_half = wall_motion(line, eta_of, t0, dt)
             else:

@@ -56,8 +56,7 @@ class KinematicSplitting(Coupler):
         unit_outer = wall.line_load(wall.outer_line)
         previous = sum(a1.energy(scene.wall_state).values()) + fluid.kinetic_energy(scene.fluid_state,
                                                                                     scene.eta(FLUID_LINE))
-        for n in range(scene.steps):
-            t0, t1 = n * dt, (n + 1) * dt
+        for n, t0, t1 in scene.windows():
             eta_n = scene.eta(FLUID_LINE)
             # A1: structure, fluid frozen
             forces = {"external": -case.loads.external.average(t0, t1) * unit_outer}

@@ -31,8 +31,7 @@ class StructureOnly(Coupler):
         unit_outer = wall.line_load(wall.outer_line)
         unit_lumen = wall.line_load(0)
         previous = sum(step.energy(scene.wall_state).values())
-        for n in range(scene.steps):
-            t0, t1 = n * dt, (n + 1) * dt
+        for n, t0, t1 in scene.windows():
             forces = {
                 "external": -loads.external.average(t0, t1) * unit_outer,
                 "interface": loads.interface.average(t0, t1) * unit_lumen,
