@@ -1,4 +1,4 @@
-"""The ``multilayer`` command: run, validate, plugins.
+"""The ``multilayer`` command: run, validate, plugins, compare.
 
 Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
 (the problems on stderr, one per line, without a traceback).
@@ -6,6 +6,7 @@ Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
     multilayer validate cases/pulse.toml --set time.dt=5e-5
     multilayer run cases/pulse.toml --out results/pulse
     multilayer plugins --plugin my_layer.py
+    multilayer compare cases/membrane-mode.toml --vary layers[0].tension=2e4,8e4 --out results/tension
 """
 
 from __future__ import annotations
@@ -74,6 +75,17 @@ def _parser() -> argparse.ArgumentParser:
     plugins = commands.add_parser("plugins", help="list the available models, or one model's parameters")
     plugins.add_argument("name", nargs="?", help="show the parameters of this model")
     common(plugins, case=False)
+
+    # -- compare: multilayer.compare ------------------------------------------
+    compare = commands.add_parser("compare", help="run variants of a scene side by side and report the differences")
+    compare.add_argument("cases", nargs="+", type=Path, metavar="CASE",
+                         help="case files (one per variant, or one with --vary)")
+    compare.add_argument("--out", type=Path, required=True, help="report folder; each variant runs into OUT/<label>/")
+    compare.add_argument("--vary", metavar="KEY=A,B[,C...]",
+                         help="one variant per value, each read like a --set value (inline tables too)")
+    compare.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                         help="override a value of every variant")
+    common(compare, case=False)
     return parser
 
 
@@ -84,6 +96,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         registry = load_registry(args.plugins)
         if args.command == "plugins":
             return _plugins(registry, args.name)
+        if args.command == "compare":
+            from multilayer import compare
+
+            return compare.main(args.cases, args.out, args.vary, args.overrides, registry)
         from multilayer.casefile import load_case
 
         case = load_case(args.case, args.overrides, registry)
