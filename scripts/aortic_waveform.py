@@ -1,0 +1,67 @@
+"""Write ``cases/data/aortic-pressure.csv``: one smooth, aortic-like pressure cycle.
+
+The waveform is a formula, not measured data. With s = t/T_c ∈ [0, 1) the
+phase in the cycle and G(s; c, w) = Σ_{k=-1,0,1} exp(−((s − c + k)/w)²) a
+periodic Gaussian bump,
+
+    w(s) = G(s; 0.16, 0.075)          systolic upstroke and peak
+         + 0.45 G(s; 0.30, 0.08)      late-systolic shoulder (reflected wave)
+         − 0.12 G(s; 0.38, 0.018)     dicrotic notch (aortic valve closure)
+         + 0.12 G(s; 0.44, 0.04)      dicrotic wave
+         + 0.30 G(s; 0.55, 0.30)      diastolic run-off
+
+    p(s) = 80 + 40 (w(s) − min w)/(max w − min w)   [mmHg]
+
+so the pressure runs from 80 (diastolic) to 120 mmHg (systolic), peaks at
+s ≈ 0.18 and shows a notch near s ≈ 0.38, as an aortic trace does. The file
+holds one cycle of T_c = 0.8 s (75 beats/min) in physical time and mmHg:
+the case file scales the pressure (``scale``) and the time axis is written
+compressed by the factor given on the command line (default 40, so a cycle
+lasts 0.02 s), because the compliant channel of SCHEME §7 is 6 cm long and a
+full 0.8 s cycle at Δt = 1e-4 would take 8000 steps per beat.
+
+    python scripts/aortic_waveform.py [compression]
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+CYCLE = 0.8     # s, 75 beats/min
+POINTS = 200    # samples per cycle (the table closes the cycle linearly)
+
+
+def bump(s: np.ndarray, centre: float, width: float) -> np.ndarray:
+    return sum(np.exp(-(((s - centre + k) / width) ** 2)) for k in (-1, 0, 1))
+
+
+def waveform(s: np.ndarray) -> np.ndarray:
+    """Pressure (mmHg) at the phases ``s`` of the cycle."""
+    w = (bump(s, 0.16, 0.075) + 0.45 * bump(s, 0.30, 0.08) - 0.12 * bump(s, 0.38, 0.018)
+         + 0.12 * bump(s, 0.44, 0.04) + 0.30 * bump(s, 0.55, 0.30))
+    fine = np.linspace(0.0, 1.0, 4001)
+    wf = (bump(fine, 0.16, 0.075) + 0.45 * bump(fine, 0.30, 0.08) - 0.12 * bump(fine, 0.38, 0.018)
+          + 0.12 * bump(fine, 0.44, 0.04) + 0.30 * bump(fine, 0.55, 0.30))
+    return 80.0 + 40.0 * (w - wf.min()) / (wf.max() - wf.min())
+
+
+def main(argv: list[str]) -> None:
+    compression = float(argv[0]) if argv else 40.0
+    s = np.arange(POINTS) / POINTS
+    t = s * CYCLE / compression
+    p = waveform(s)
+    out = Path(__file__).parents[1] / "cases" / "data" / "aortic-pressure.csv"
+    lines = [f"# aortic-like pressure cycle written by scripts/aortic_waveform.py (compression {compression:g}):",
+             f"# one {CYCLE:g} s cycle shown in {CYCLE / compression:g} s; p in mmHg (80-120)",
+             "t,p"]
+    lines += [f"{ti:.8e},{pi:.6f}" for ti, pi in zip(t, p)]
+    out.write_text("\n".join(lines) + "\n")
+    print(f"wrote {out}: {POINTS} points, p in [{p.min():.2f}, {p.max():.2f}] mmHg, "
+          f"peak at s = {s[np.argmax(p)]:.3f}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
