@@ -37,7 +37,8 @@ from multilayer.problems import MISSING, CaseError, Problem, check_params, did_y
 from multilayer.records import Param
 from multilayer.registry import Registry
 
-__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems"]
+__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems", "key_steps",
+           "parse_value"]
 
 SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver")
 
@@ -169,7 +170,12 @@ def parse_value(text: str) -> Any:
         return text.strip()
 
 
-def _key_steps(key: str) -> list[str | int] | None:
+def key_steps(key: str) -> list[str | int] | None:
+    """The steps of a dotted key path, or None when it is not one.
+
+    >>> key_steps("layers[1].young")
+    ['layers', 1, 'young']
+    """
     steps: list[str | int] = []
     for part in key.split("."):
         match = _STEP.match(part)
@@ -205,7 +211,7 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[Prob
     for item in overrides:
         key, eq, text = item.partition("=")
         key = key.strip()
-        steps = _key_steps(key) if eq else None
+        steps = key_steps(key) if eq else None
         if not steps:
             problems.append(Problem("--set", item, "expected KEY=VALUE with KEY like time.dt or layers[0].young"))
             continue

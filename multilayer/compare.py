@@ -28,7 +28,7 @@ import attrs
 import meshio
 import numpy as np
 
-from multilayer.casefile import _key_steps, load_case, parse_value
+from multilayer.casefile import key_steps, load_case, parse_value
 from multilayer.problems import CaseError, Problem
 from multilayer.registry import Registry
 
@@ -102,7 +102,7 @@ def parse_vary(text: str) -> tuple[str, list[str]]:
     """
     key, eq, rest = text.partition("=")
     key = key.strip()
-    if not eq or not _key_steps(key):
+    if not eq or not key_steps(key):
         raise CaseError([Problem("--vary", text, "expected KEY=A,B[,C...] with KEY like time.dt or layers[0].young")])
     try:
         values = split_values(rest)
@@ -145,7 +145,7 @@ def _vary_label(key: str, text: str) -> str:
     value = parse_value(text)
     if isinstance(value, Mapping):
         return sanitize(str(value.get("model", key)))
-    tail = [s for s in _key_steps(key) if isinstance(s, str)][-1]
+    tail = [s for s in key_steps(key) if isinstance(s, str)][-1]
     return sanitize(f"{tail}={text}")
 
 
