@@ -266,6 +266,12 @@ class Coupler(ABC):
         """
         return []
 
+    def prepare(self, scene: Scene) -> None:
+        """Set up what the scheme needs before the first step (e.g. the fluid's wall mode).
+
+        Called once, before the initial snapshot, so t = 0 is written for every part.
+        """
+
     @abstractmethod
     def evolve(self, scene: Scene) -> Iterator[StepReport]:
         """Advance the scene step by step, yielding a report after each step."""

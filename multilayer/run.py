@@ -82,6 +82,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
             scene = Scene.build(case, registry)
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             raise RunFailed(f"setting up the scene failed: {exc}") from exc
+        scene.coupler.prepare(scene)
         probes = scene.probe_rows(case.output.probes)
         every = case.output.every
         series = None

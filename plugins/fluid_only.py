@@ -39,13 +39,17 @@ class FluidOnly(Coupler):
                             "or choose the coupler 'kinematic-splitting'")
         return problems
 
+    def prepare(self, scene) -> None:
+        motion = scene.case.loads.wall_motion
+        scene.setup_fluid("prescribed" if motion is not None else "rigid")
+        if motion is not None:
+            scene.fluid_eta = np.asarray(motion(t=0.0, z=scene.fluid.line.z), dtype=float)
+
     def evolve(self, scene) -> Iterator[StepReport]:
         case, fluid, dt = scene.case, scene.fluid, scene.dt
         motion = case.loads.wall_motion
-        scene.setup_fluid("prescribed" if motion is not None else "rigid")
         line = fluid.line
         eta_of = (lambda t, z: motion(t=t, z=z)) if motion is not None else (lambda t, z: 0.0 * z)
-        scene.fluid_eta = np.asarray(eta_of(0.0, line.z), dtype=float)
         previous = fluid.kinetic_energy(scene.fluid_state, scene.fluid_eta)
         for n, t0, t1 in scene.windows():
             if motion is not None:

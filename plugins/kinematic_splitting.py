@@ -47,11 +47,14 @@ class KinematicSplitting(Coupler):
                             "remove it, or choose the coupler 'fluid-only' without [[layers]]")
         return problems
 
+    def prepare(self, scene) -> None:
+        scene.setup_fluid("coupled")
+        scene.wall_state.v = scene.wall.prolongations[FLUID_LINE].T @ scene.wall_state.V
+        scene.fluid_eta = scene.eta(FLUID_LINE)
+
     def evolve(self, scene) -> Iterator[StepReport]:
         case, fluid, dt, wall = scene.case, scene.fluid, scene.dt, scene.wall
         a1 = StructureStep(scene.stack, dt, scene.stats, case.solver, fluid_line=FLUID_LINE)
-        scene.wall_state.v = wall.prolongations[FLUID_LINE].T @ scene.wall_state.V
-        scene.setup_fluid("coupled")
         robin_mass = self.robin_mass(scene)
         unit_outer = wall.line_load(wall.outer_line)
         previous = sum(a1.energy(scene.wall_state).values()) + fluid.kinetic_energy(scene.fluid_state,
