@@ -232,8 +232,10 @@ class TablePressure(PressureLoad):
         cumulative = np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
         done = 0.0  # whole cycles before t
         if self.period is not None:
-            done = math.floor((t - x[0]) / self.period) * cumulative[-1]
-            t = float(self._within(np.asarray(t)))
+            # one divmod for both: floor and mod computed apart can disagree by a cycle at a boundary
+            cycles, into = divmod(t - x[0], self.period)
+            done = cycles * cumulative[-1]
+            t = x[0] + into
         if t <= x[0]:
             return done + y[0] * (t - x[0])
         if t >= x[-1]:
