@@ -67,7 +67,8 @@ PROBE = (
     Param("name", type=str, default=None, doc="column name in series.csv"),
     Param("quantity", type=str, choices=QUANTITIES, doc="what is measured"),
     Param("z", "z", "cm", doc="axial position"),
-    Param("r", "r", "cm", default=None, doc="radial position (reference configuration)"),
+    Param("r", "r", "cm", default=None,
+          doc="radial position in the reference configuration: Lagrangian in the wall, r̂ of the ALE map in the fluid"),
     Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
 )
 OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
@@ -506,7 +507,7 @@ class _Validator:
         lines = sum(not layer.thin for layer in layers)
         probes, names = [], set()
         for i, spec in enumerate(specs):
-            probe = self.probe(spec, f"output.probes[{i}]", constants, fluid, lines)
+            probe = self.probe(spec, f"output.probes[{i}]", constants, fluid, lines, bool(layers))
             if probe is None:
                 continue
             if probe.name in names:
@@ -515,7 +516,8 @@ class _Validator:
             probes.append(probe)
         return Output(every=values.get("every", 0), probes=tuple(probes))
 
-    def probe(self, spec: Any, path: str, constants: Mapping[str, float], fluid: ModelSpec | None, lines: int) -> Probe | None:
+    def probe(self, spec: Any, path: str, constants: Mapping[str, float], fluid: ModelSpec | None, lines: int,
+              has_wall: bool) -> Probe | None:
         values, problems = check_params(spec, PROBE, path)
         if problems:
             self.add(problems)
@@ -525,6 +527,12 @@ class _Validator:
         found = []
         if fluid is None and q in FLUID_QUANTITIES:
             found.append(Problem(f"{path}.quantity", q, "a fluid quantity, but the case has no fluid"))
+        if self.stack_known and q not in FLUID_QUANTITIES:
+            if not has_wall:
+                found.append(Problem(f"{path}.quantity", q, "a wall quantity, but the case has no [[layers]]"))
+            elif q in ("d_z", "d_r") and lines == 0:
+                found.append(Problem(f"{path}.quantity", q, "a displacement inside a thick band, but the stack has "
+                                     "no thick layer", "measure a thin layer with quantity = \"eta\""))
         if not 0.0 <= z <= L:
             found.append(Problem(f"{path}.z", z, f"expected a position in [0, L = {L:g}] (cm)"))
         if q in POINT_QUANTITIES:

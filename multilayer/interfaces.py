@@ -231,6 +231,14 @@ class Fluid(ABC):
         """Volume flux through the section at z (cm²/s)."""
 
     @abstractmethod
+    def probe(self, quantity: str, z: float, rhat: float | None = None) -> Any:
+        """A function (state, η) → float for a probe, built once per run.
+
+        ``u_z``, ``u_r``, ``p`` at the reference point (z, r̂) of the ALE map
+        (it moves with the channel), or ``flow_rate`` through the section z.
+        """
+
+    @abstractmethod
     def velocity(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
         """(u_z, u_r) at physical points, a (2, n) array."""
 

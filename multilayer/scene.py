@@ -21,9 +21,6 @@ from multilayer.registry import Registry
 from multilayer.structure import WallState, zero_fixed
 from multilayer.wall import Stack, WallSpace
 
-WALL_QUANTITIES = ("eta", "v", "d_z", "d_r")
-
-
 def build_model(registry: Registry, kind: str, spec) -> Any:
     return registry.get(kind, spec.model).record.factory(**dict(spec.params))
 
@@ -108,47 +105,34 @@ class Scene:
 
     # -- probes ---------------------------------------------------------------
     def probe_rows(self, probes: tuple[Probe, ...]) -> dict[str, Any]:
-        """Build each probe's evaluator once: a sparse row over the wall DOFs, or a fluid callable."""
+        """Each probe's evaluator, built once: a sparse row (wall) or a sampler (fluid)."""
         rows = {}
         for p in probes:
-            if p.quantity in WALL_QUANTITIES:
-                rows[p.name] = self._wall_probe(p)
+            if p.quantity in ("eta", "v"):
+                rows[p.name] = (p.quantity, p.line, self.wall.lines[p.line].basis.probes(np.array([[p.z]])).tocsr())
+            elif p.quantity in ("d_z", "d_r"):
+                comp = {"d_z": 0, "d_r": 1}[p.quantity]
+                rows[p.name] = ("d", None, self.wall.basis.probes(np.array([[p.z], [p.r]])).tocsr()[comp])
             else:
-                rows[p.name] = ("fluid", p)
+                rows[p.name] = ("fluid", None, self.fluid.probe(p.quantity, p.z, p.r))
         return rows
 
-    def _wall_probe(self, p: Probe):
-        wall = self.wall
-        if p.quantity in ("eta", "v") or wall.basis is None:
-            i = p.line if p.quantity in ("eta", "v") else 0
-            row = wall.lines[i].basis.probes(np.array([[p.z]])).tocsr()
-            return ("line", "v" if p.quantity == "v" else "eta", i, row)
-        comp = {"d_z": 0, "d_r": 1}[p.quantity]
-        return ("wall", p.quantity, None, wall.basis.probes(np.array([[p.z], [p.r]])).tocsr()[comp])
-
     def probe_values(self, rows: dict[str, Any]) -> dict[str, float]:
+        """The probes' values in the current state (line vectors computed once per line)."""
+        lines: dict[tuple[str, int], np.ndarray] = {}
         out = {}
-        for name, ev in rows.items():
-            if ev[0] == "line":
-                _, q, i, row = ev
-                vec = self.wall_velocity(i) if q == "v" else self.eta(i)
-            elif ev[0] == "wall":
-                _, q, _, row = ev
+        for name, (kind, line, ev) in rows.items():
+            if kind == "fluid":
+                out[name] = ev(self.fluid_state, self.fluid_eta)
+                continue
+            if kind == "d":
                 vec = self.wall_state.d
             else:
-                out[name] = self._fluid_probe(ev[1])
-                continue
-            out[name] = float((row @ vec)[0])
+                if (kind, line) not in lines:
+                    lines[kind, line] = self.wall_velocity(line) if kind == "v" else self.eta(line)
+                vec = lines[kind, line]
+            out[name] = float((ev @ vec)[0])
         return out
-
-    def _fluid_probe(self, p: Probe) -> float:
-        fluid, state, eta = self.fluid, self.fluid_state, self.fluid_eta
-        if p.quantity == "flow_rate":
-            return float(fluid.flow_rate(state, eta, p.z))
-        if p.quantity == "p":
-            return float(fluid.pressure(state, eta, [p.z], [p.r])[0])
-        comp = {"u_z": 0, "u_r": 1}[p.quantity]
-        return float(fluid.velocity(state, eta, [p.z], [p.r])[comp, 0])
 
     # -- snapshots ------------------------------------------------------------
     def wall_snapshot(self) -> tuple[np.ndarray, dict, dict]:
@@ -165,7 +149,8 @@ class Scene:
             eta = st.d[vert]
             pts = np.column_stack([mesh.p[0], np.full(mesh.p.shape[1], line.radius), np.zeros(mesh.p.shape[1])])
             disp = np.column_stack([np.zeros_like(eta), eta, np.zeros_like(eta)])
-            return pts, {"line": mesh.t.T}, {"displacement": disp, "eta": eta, "velocity_r": st.V[vert]}
+            return pts, {"line": mesh.t.T}, {"displacement": disp, "eta": eta,
+                                             "velocity_r": self.wall_velocity(0)[vert]}
         mesh = wall.basis.mesh
         nd = wall.basis.nodal_dofs
         pts = np.column_stack([mesh.p[0], mesh.p[1], np.zeros(mesh.p.shape[1])])

@@ -155,3 +155,15 @@ def test_thick_first_layer_is_rejected(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert "layers[0]" in err and "thick" in err
+
+
+def test_fluid_probe_on_the_wall_follows_it_and_sees_the_wall_velocity(tmp_path):
+    # external pressure squeezes the channel: a fluid probe at r̂ = R rides the ALE map with
+    # the wall (never outside the fluid), and there u_r is the thin layer's velocity v (u = v e_r on Γ)
+    code, summary, cols = run("pulse-koiter", tmp_path / "squeeze", "mesh.nz=12", "mesh.nr=3", "time.end=0.002",
+                        "loads.external=3000",
+                        'output.probes=[{name="ur_wall",quantity="u_r",z=2.0,r=0.5},'
+                        '{name="v",quantity="v",z=2.0},{name="eta",quantity="eta",z=2.0}]')
+    assert code == 0 and summary["status"] == "ok"
+    assert cols["eta"].min() < 0  # the wall moved inward
+    assert np.max(np.abs(cols["ur_wall"] - cols["v"])) <= 1e-12 * np.max(np.abs(cols["v"]))

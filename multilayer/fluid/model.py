@@ -108,7 +108,7 @@ class ChannelFluid(Fluid):
     ) -> FluidState:
         """Rest, or the interpolant of ``velocity(z, r) -> (u_z, u_r)`` given in the physical domain of ``eta``."""
         ch = self.channel
-        eta = np.zeros(ch.line.ndofs) if eta is None else eta
+        eta = self._eta(eta)
         u = np.zeros(ch.nu)
         if velocity is not None:
             R = ch.radius
@@ -134,13 +134,23 @@ class ChannelFluid(Fluid):
     def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
         """½ρ_f ∫ J|u|² on the domain of ``eta``."""
         ch = self.channel
-        eta = np.zeros(ch.line.ndofs) if eta is None else eta
+        eta = self._eta(eta)
         fields = ALEFields.at(ch, eta, np.zeros_like(eta))
         return fluid_kinetic(ch, self.density, fields.J, state.u)
 
     def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float) -> float:
         """Volume flux through the section at z (cm²/s)."""
         return probes.flow_rate(self.channel, state.u, self._eta(eta), z)
+
+    def probe(self, quantity: str, z: float, rhat: float | None = None):
+        """A function (state, η) → value for ``quantity`` (``u_z``, ``u_r``, ``p`` at the
+        reference point (z, r̂), or ``flow_rate`` through the section z), built once."""
+        ch = self.channel
+        if quantity == "flow_rate":
+            sample = probes.flow_rate_sampler(ch, z)
+            return lambda state, eta: sample(state.u, self._eta(eta))
+        point = probes.reference_point_sampler(ch, quantity, z, rhat)
+        return lambda state, eta: point(state.u, state.p)
 
     def velocity(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
         """(u_z, u_r) at physical points, a (2, n) array (cm/s)."""

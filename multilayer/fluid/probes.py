@@ -2,6 +2,8 @@
 
 A physical point (z, r) of the domain of η is the reference point
 (z, r̂ = R r / (R + η(z))); fields are evaluated there on the fixed mesh.
+Probes of a run are built once as samplers: their reference points do not
+move, only J(z) of a flow rate changes with the wall.
 """
 
 from __future__ import annotations
@@ -48,11 +50,13 @@ def section_nodes(channel: Channel, z: float) -> np.ndarray:
     return np.unique(np.concatenate([[0.0, channel.radius], r]))
 
 
-def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float) -> float:
-    """Q(z) = ∫₀^{R+η(z)} u_z dr = J(z) ∫₀^R u_z(z, r̂) dr̂ (cm²/s), exact for the element.
+def flow_rate_sampler(channel: Channel, z: float):
+    """Q(z) as a function of (u, η), its sampling built once.
 
-    Gauss–Legendre with three points between consecutive crossings of mesh
-    edges integrates P2 and P1b velocities exactly.
+    Q(z) = ∫₀^{R+η(z)} u_z dr = J(z) ∫₀^R u_z(z, r̂) dr̂ (cm²/s), exact for the
+    element: Gauss–Legendre with three points between consecutive crossings
+    of mesh edges integrates P2 and P1b velocities exactly.  Neither the
+    points nor the weights depend on η, so only J(z) changes with the wall.
     """
     nodes = section_nodes(channel, z)
     g, wg = np.polynomial.legendre.leggauss(3)
@@ -60,9 +64,33 @@ def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float) -> flo
     rhat = (0.5 * (a + b) + 0.5 * (b - a) * g).ravel()
     weights = (0.5 * (b - a) * wg).ravel()
     x = np.vstack([np.full_like(rhat, z), rhat])
-    uz = (channel.velocity.probes(x) @ u).reshape(2, -1)[0]
-    J = 1.0 + float(wall_displacement(channel, eta, z)[0]) / channel.radius
-    return J * float(weights @ uz)
+    row = weights @ channel.velocity.probes(x).tocsr()[: len(rhat)]  # the u_z rows
+    eta_row = channel.line.basis.probes(np.array([[z]])).tocsr()
+    R = channel.radius
+
+    def sample(u: np.ndarray, eta: np.ndarray) -> float:
+        return (1.0 + float((eta_row @ eta)[0]) / R) * float(row @ u)
+
+    return sample
+
+
+def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float) -> float:
+    """Q(z) (cm²/s); see :func:`flow_rate_sampler`."""
+    return flow_rate_sampler(channel, z)(u, eta)
+
+
+def reference_point_sampler(channel: Channel, quantity: str, z: float, rhat: float):
+    """u_z, u_r or p at the reference point (z, r̂), as a function of (u, p).
+
+    The point follows the ALE map: it sits at r = r̂ (R + η(z))/R in the
+    physical channel, so it never leaves the fluid however the wall moves.
+    """
+    x = np.array([[z], [rhat]])
+    if quantity == "p":
+        row = channel.pressure.probes(x).tocsr()
+        return lambda u, p: float((row @ p)[0])
+    row = channel.velocity.probes(x).tocsr()[{"u_z": 0, "u_r": 1}[quantity]]
+    return lambda u, p: float((row @ u)[0])
 
 
 def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
