@@ -119,6 +119,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _run(case: object, out: Path, registry: Registry) -> int:
     from multilayer.run import run_case
 
+    if out.exists() and not out.is_dir():
+        print(f"--out {out} is a file, not a folder", file=sys.stderr)
+        return INVALID
     try:
         result = run_case(case, out, registry)
     except Exception:  # a bug, not a user mistake: the traceback helps

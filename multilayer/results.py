@@ -75,10 +75,24 @@ class ResultsFolder:
     ['step,t', '1,0.0001']
     """
 
+    #: the parts a run writes snapshots of
+    PARTS = ("wall", "fluid")
+
     def __init__(self, out: Path | str):
         self.path = Path(out)
+        if self.path.exists() and not self.path.is_dir():
+            raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
         self.path.mkdir(parents=True, exist_ok=True)
+        self._clear_previous_run()
         self._snapshots: dict[str, list[tuple[float, str]]] = {}
+
+    def _clear_previous_run(self) -> None:
+        """Remove what an earlier run wrote here, so no stale row or snapshot survives this one."""
+        stale = [self.path / "series.csv", self.path / "summary.json"]
+        for part in self.PARTS:
+            stale += [self.path / f"{part}.pvd", *self.path.glob(f"{part}_[0-9][0-9][0-9][0-9][0-9][0-9].vtu")]
+        for path in stale:
+            path.unlink(missing_ok=True)
 
     def series(self, columns: Sequence[str], name: str = "series.csv") -> SeriesWriter:
         """A writer of ``series.csv`` with these columns."""

@@ -15,7 +15,9 @@ keeps every row and snapshot written so far.
 from __future__ import annotations
 
 import math
+import sys
 import time
+import traceback
 from pathlib import Path
 
 import attrs
@@ -75,7 +77,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
     wall_t0 = time.perf_counter()
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
-    status, reason, steps, max_rel = "ok", "", 0, 0.0
+    status, reason, steps, max_rel, crash = "ok", "", 0, 0.0, ""
     scene: Scene | None = None
     try:
         try:
@@ -106,9 +108,14 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
         status, reason = "failed", str(exc)
     except (FloatingPointError, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
         status, reason = "failed", f"{type(exc).__name__} after step {steps}: {exc}"
+    except Exception as exc:  # a bug: still keep the results and say where
+        status, reason = "failed", f"{type(exc).__name__} after step {steps}: {exc}"
+        crash = traceback.format_exc()
+        print(crash, file=sys.stderr)
     summary = {
         "status": status,
-        **({"reason": reason} if reason else {}),
+        "reason": reason,
+        **({"traceback": crash} if crash else {}),
         "multilayer_version": __version__,
         "case": dict(case.resolved),
         "case_hash": case.digest,
@@ -149,18 +156,20 @@ def _factorizations(scene: Scene | None) -> dict[str, int]:
 
 
 def _timings(scene: Scene | None) -> dict[str, float]:
-    """Seconds per phase, wall and fluid together."""
+    """Seconds per phase, wall and fluid together (every key present, 0 when the scene never started)."""
     if scene is None:
-        return {}
+        return dict.fromkeys(("assembly", "factorization", "solves", "output", "ledger"), 0.0)
     out = {
         "assembly": scene.timings.get("assembly", 0.0),
         "factorization": scene.stats.factorization_s,
         "solves": scene.stats.solve_s,
         "output": scene.timings.get("output", 0.0),
+        "ledger": 0.0,
     }
     fluid = _fluid_step(scene)
     if fluid is not None:
         out["assembly"] += fluid.assembly_s
         out["factorization"] += fluid.stats.factorization_s
         out["solves"] += fluid.stats.solve_s
+        out["ledger"] += fluid.ledger_s
     return out
