@@ -25,6 +25,8 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from multilayer.loads import is_zero
+
 if TYPE_CHECKING:  # pragma: no cover
     import skfem
 
@@ -267,12 +269,19 @@ class StepReport:
 class Coupler(ABC):
     """A time-stepping scheme that drives a scene."""
 
+    #: the loads (keys of ``[loads]``) this coupler applies; any other must be left at 0
+    loads: ClassVar[tuple[str, ...]] = ()
+
     def check_case(self, case: Case) -> list[str]:
         """Reasons this coupler cannot run ``case`` (empty when it can).
 
         Called by the case validator, so ``multilayer validate`` reports them.
+        The default rejects a non-zero load that the coupler would ignore.
         """
-        return []
+        name = getattr(self, "name", type(self).__name__)
+        return [f"loads.{key} is set, but {name} does not apply it (it applies: {', '.join(self.loads) or 'none'})"
+                for key in ("inlet", "outlet", "external", "interface")
+                if key not in self.loads and not is_zero(getattr(case.loads, key))]
 
     def prepare(self, scene: Scene) -> None:
         """Set up what the scheme needs before the first step (e.g. the fluid's wall mode).

@@ -29,6 +29,15 @@ from multilayer.problems import MISSING, CaseError, Problem, check_params, did_y
 from multilayer.records import Param
 
 
+def is_zero(load: PressureLoad | None) -> bool:
+    """True for a load that is absent or the constant 0 (the default of every load).
+
+    >>> is_zero(ConstantPressure(0.0)), is_zero(ConstantPressure(1.0))
+    (True, False)
+    """
+    return load is None or (isinstance(load, ConstantPressure) and load.value_ == 0.0)
+
+
 class PressureLoad(ABC):
     """A pressure history P(t) in dyn/cm²."""
 

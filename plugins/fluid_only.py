@@ -30,8 +30,11 @@ def fluid_ledger_groups(energy: dict[str, float]) -> tuple[dict, dict, dict]:
 
 
 class FluidOnly(Coupler):
+    name = "fluid-only"
+    loads = ("inlet", "outlet")
+
     def check_case(self, case) -> list[str]:
-        problems = []
+        problems = super().check_case(case)
         if case.fluid is None:
             problems.append("fluid-only needs a fluid: set [fluid] model = \"navier-stokes\" or \"stokes\"")
         if case.layers:

@@ -31,8 +31,11 @@ FLUID_LINE = 0
 
 
 class KinematicSplitting(Coupler):
+    name = "kinematic-splitting"
+    loads = ("inlet", "outlet", "external")
+
     def check_case(self, case) -> list[str]:
-        problems = []
+        problems = super().check_case(case)
         if case.fluid is None:
             problems.append("kinematic-splitting couples a fluid to the wall: declare [fluid], "
                             "or choose the coupler 'structure-only'")

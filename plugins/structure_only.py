@@ -16,8 +16,11 @@ from multilayer.structure import StructureStep
 
 
 class StructureOnly(Coupler):
+    name = "structure-only"
+    loads = ("external", "interface")
+
     def check_case(self, case) -> list[str]:
-        problems = []
+        problems = super().check_case(case)
         if case.fluid is not None:
             problems.append("structure-only runs a wall without fluid: set fluid = \"none\", "
                             "or choose the coupler 'kinematic-splitting'")

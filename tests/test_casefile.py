@@ -312,6 +312,8 @@ MISTAKES = [
     ("solver", ("[output]", '[solver]\nlinear = "umfpak"\n\n[output]'), [], ["solver.linear = 'umfpak'"]),
     ("missing-geometry", ("[geometry]\nlength = 6.0\nradius = 0.5\n", ""), [], ["geometry: missing"]),
     ("toml-syntax", ("nz = 6", "nz = = 6"), [], ["invalid TOML", "line 8"]),
+    ("unused-load", None, ["--set", "loads.inlet=100"],
+     ["loads.inlet is set, but structure-only does not apply it (it applies: external, interface)"]),
     ("set-path", None, ["--set", "time.dtt=1e-4"], ["time.dtt = 0.0001: unknown key; did you mean 'dt'? (from --set)"]),
     ("set-index", None, ["--set", "layers[2].young=1e6"], ["layers[2]: no such entry"]),
     ("set-value", None, ["--set", "layers[1].young=-3"], ["layers[1].young = -3: expected a number > 0"]),
