@@ -29,10 +29,9 @@ import meshio
 import numpy as np
 
 from multilayer.casefile import key_steps, load_case, parse_value
+from multilayer.cli import FAILED, INVALID, OK
 from multilayer.problems import CaseError, Problem
 from multilayer.registry import Registry
-
-OK, FAILED, INVALID = 0, 1, 2
 #: snapshots per run when a case writes none (the space–time plot needs them)
 SNAPSHOTS = 100
 

@@ -128,6 +128,3 @@ class Registry:
 
     def all(self) -> list[Registered]:
         return [r for kind in HOOKS for r in self._by_kind[kind].values()]
-
-    def versions(self) -> dict[str, str]:
-        return {r.package: r.version for r in self.all()}

@@ -32,12 +32,13 @@ class SeriesWriter:
     def __init__(self, path: Path, columns: Sequence[str]):
         self.path = path
         self.columns = list(columns)
+        self._known = frozenset(self.columns)
         with open(self.path, "w", newline="") as f:
             csv.writer(f).writerow(self.columns)
 
     def append(self, row: Mapping[str, Any]) -> None:
         """Write one row; a column the row lacks is left empty, an unknown key is an error."""
-        unknown = set(row) - set(self.columns)
+        unknown = row.keys() - self._known
         if unknown:
             raise KeyError(f"not columns of {self.path.name}: {sorted(unknown)}")
         with open(self.path, "a", newline="") as f:

@@ -19,7 +19,7 @@ from multilayer.interfaces import Coupler, Fluid, Layer
 from multilayer.linsolve import SolverStats
 from multilayer.registry import Registry
 from multilayer.structure import WallState, zero_fixed
-from multilayer.wall import Stack, WallSpace
+from multilayer.wall import LUMEN, Stack, WallSpace
 
 def build_model(registry: Registry, kind: str, spec) -> Any:
     return registry.get(kind, spec.model).record.factory(**dict(spec.params))
@@ -63,7 +63,7 @@ class Scene:
         """Discretize the fluid for ``wall_mode`` (``coupled``, ``rigid``, ``prescribed``) and start it at rest."""
         t0 = time.perf_counter()
         g, m = self.case.geometry, self.case.mesh
-        line = self.wall.lines[0] if self.wall is not None else None
+        line = self.wall.lines[LUMEN] if self.wall is not None else None
         self.fluid.setup(g.length, g.radius, m.nz, m.nr, m.order, m.grading, self.dt, wall_mode,
                          self.case.solver, line=line)
         self.fluid_state = self.fluid.initial_state()
@@ -85,12 +85,13 @@ class Scene:
             yield n, n * dt, (n + 1) * dt
 
     # -- wall quantities ----------------------------------------------------
-    def eta(self, line: int = 0) -> np.ndarray:
+    def eta(self, line: int = LUMEN) -> np.ndarray:
         """η on ``line`` in the line's own numbering."""
         return self.wall.prolongations[line].T @ self.wall_state.d
 
-    def wall_velocity(self, line: int = 0) -> np.ndarray:
-        if line == 0 and self.wall_state.v is not None:
+    def wall_velocity(self, line: int = LUMEN) -> np.ndarray:
+        """v on ``line``: on the lumen the fluid-updated thin velocity when the fluid carries it."""
+        if line == LUMEN and self.wall_state.v is not None:
             return self.wall_state.v
         return self.wall.prolongations[line].T @ self.wall_state.V
 

@@ -31,3 +31,13 @@ def line_prolongation(line: LineSpace, dofs: np.ndarray, dof_z: np.ndarray, n: i
     """
     idx = dofs[match_by_z(line.z, dof_z, line.length)]
     return sp.csr_matrix((np.ones(line.ndofs), (idx, np.arange(line.ndofs))), shape=(n, line.ndofs))
+
+
+def prolongation_dofs(P: sp.spmatrix) -> np.ndarray:
+    """The global DOF of each line DOF of a prolongation built by :func:`line_prolongation`.
+
+    >>> P = sp.csr_matrix(([1.0, 1.0], ([4, 2], [0, 1])), shape=(5, 2))
+    >>> prolongation_dofs(P).tolist()
+    [4, 2]
+    """
+    return sp.csc_matrix(P).indices

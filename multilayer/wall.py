@@ -19,7 +19,10 @@ import skfem
 
 from multilayer.interfaces import BandSpace, Layer, LayerMatrices, LineSpace
 from multilayer.mesh import lagrange_tri, wall_mesh
-from multilayer.spaces import line_prolongation, make_line_space
+from multilayer.spaces import line_prolongation, make_line_space, prolongation_dofs
+
+#: the interface line of the lumen, r = R: the fluid's wall
+LUMEN = 0
 
 
 @attrs.frozen(eq=False)
@@ -90,16 +93,13 @@ class WallSpace:
     def space_of(self, p: Placement) -> LineSpace | BandSpace:
         return self.lines[p.line] if p.line is not None else self.bands[p.band]
 
-    def thin_lines(self) -> list[int]:
-        return sorted({p.line for p in self.placements if p.line is not None})
-
     @property
     def outer_line(self) -> int:
         return len(self.lines) - 1
 
     def line_dofs(self, i: int) -> np.ndarray:
         """Wall DOFs of line i, in the line's own order."""
-        return self.prolongations[i].tocsc().indices
+        return prolongation_dofs(self.prolongations[i])
 
     def line_load(self, i: int) -> np.ndarray:
         """∫ ψ dz on line i, in wall numbering: the work vector of a unit pressure."""

@@ -15,18 +15,8 @@ from multilayer import ledger
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, StepReport
 from multilayer.records import CouplerPlugin
+from multilayer.fluid.ledger import ledger_groups
 from multilayer.fluid.model import wall_motion
-
-
-def fluid_ledger_groups(energy: dict[str, float]) -> tuple[dict, dict, dict]:
-    """The A2 terms of a fluid step as ledger groups (stored, work, dissipation)."""
-    stored = {"kinetic.fluid": energy["fluid.kinetic"]}
-    work = {"work.inlet": energy["inlet.work"], "work.outlet": energy["outlet.work"]}
-    dissipation = {
-        "dissipation.viscous.fluid": energy["fluid.viscous_dissipation"],
-        "dissipation.numerical.A2": energy["fluid.numerical_dissipation"] + energy["thin.numerical_dissipation"],
-    }
-    return stored, work, dissipation
 
 
 class FluidOnly(Coupler):
@@ -52,7 +42,7 @@ class FluidOnly(Coupler):
         case, fluid, dt = scene.case, scene.fluid, scene.dt
         motion = case.loads.wall_motion
         line = fluid.line
-        eta_of = (lambda t, z: motion(t=t, z=z)) if motion is not None else (lambda t, z: 0.0 * z)
+        eta_of = (lambda t, z: motion(t=t, z=z)) if motion is not None else None
         previous = fluid.kinetic_energy(scene.fluid_state, scene.fluid_eta)
         for n, t0, t1 in scene.windows():
             if motion is not None:
@@ -64,7 +54,7 @@ class FluidOnly(Coupler):
             scene.fluid_state = res.state
             if motion is not None:
                 scene.fluid_eta = eta_n + dt * v_half
-            stored, work, dissipation = fluid_ledger_groups(res.energy)
+            stored, work, dissipation = ledger_groups(res.energy)
             if motion is not None:
                 work["work.wall"] = res.energy["wall.work"]
             row = ledger.close(stored, previous, work, dissipation)

@@ -24,10 +24,10 @@ from multilayer import ledger
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, StepReport
 from multilayer.records import CouplerPlugin
+from multilayer.fluid.ledger import ledger_groups
 from multilayer.structure import StructureStep
-from multilayer_plugins.fluid_only import fluid_ledger_groups
+from multilayer.wall import LUMEN
 
-FLUID_LINE = 0
 
 
 class KinematicSplitting(Coupler):
@@ -52,21 +52,20 @@ class KinematicSplitting(Coupler):
 
     def prepare(self, scene) -> None:
         scene.setup_fluid("coupled")
-        scene.wall_state.v = scene.wall.prolongations[FLUID_LINE].T @ scene.wall_state.V
-        scene.fluid_eta = scene.eta(FLUID_LINE)
+        scene.wall_state.v = scene.wall.prolongations[LUMEN].T @ scene.wall_state.V
+        scene.fluid_eta = scene.eta(LUMEN)
 
     def evolve(self, scene) -> Iterator[StepReport]:
         case, fluid, dt, wall = scene.case, scene.fluid, scene.dt, scene.wall
-        a1 = StructureStep(scene.stack, dt, scene.stats, case.solver, fluid_line=FLUID_LINE)
+        a1 = StructureStep(scene.stack, dt, scene.stats, case.solver, fluid_line=LUMEN)
         robin_mass = self.robin_mass(scene)
         unit_outer = wall.line_load(wall.outer_line)
-        previous = sum(a1.energy(scene.wall_state).values()) + fluid.kinetic_energy(scene.fluid_state,
-                                                                                    scene.eta(FLUID_LINE))
+        structure_before = sum(a1.energy(scene.wall_state).values())
+        previous = structure_before + fluid.kinetic_energy(scene.fluid_state, scene.fluid_eta)
         for n, t0, t1 in scene.windows():
-            eta_n = scene.eta(FLUID_LINE)
+            eta_n = scene.fluid_eta  # ηⁿ: the fluid step runs on the domain before the structure step
             # A1: structure, fluid frozen
             forces = {"external": -case.loads.external.average(t0, t1) * unit_outer}
-            structure_before = sum(a1.energy(scene.wall_state).values())
             scene.wall_state, half, work, dissipation = a1.step(scene.wall_state, forces)
             a1_row = ledger.close(half, structure_before, work, dissipation)
             v_half = scene.wall_state.v
@@ -76,9 +75,11 @@ class KinematicSplitting(Coupler):
                              robin_mass=robin_mass)
             scene.fluid_state = res.state
             scene.wall_state.v = res.state.v
-            scene.fluid_eta = scene.eta(FLUID_LINE)
-            stored_f, work_f, dissipation_f = fluid_ledger_groups(res.energy)
-            stored = {**a1.energy(scene.wall_state), **stored_f}
+            scene.fluid_eta = scene.eta(LUMEN)
+            stored_f, work_f, dissipation_f = ledger_groups(res.energy)
+            stored_wall = a1.energy(scene.wall_state)
+            structure_before = sum(stored_wall.values())
+            stored = {**stored_wall, **stored_f}
             row = ledger.close(stored, previous, {**work, **work_f}, {**dissipation, **dissipation_f})
             # each sub-step's own identity, besides the total (SCHEME §4)
             row["energy.relative_residual.A1"] = a1_row["energy.relative_residual"]
@@ -90,8 +91,8 @@ class KinematicSplitting(Coupler):
     @staticmethod
     def robin_mass(scene) -> sp.csr_matrix:
         """ρ₁h ∫ v ψ of every thin layer on the fluid interface, in the line's numbering."""
-        P = scene.wall.prolongations[FLUID_LINE]
-        masses = [scene.stack.matrices[p.index].mass for p in scene.wall.placements if p.line == FLUID_LINE]
+        P = scene.wall.prolongations[LUMEN]
+        masses = [scene.stack.matrices[p.index].mass for p in scene.wall.placements if p.line == LUMEN]
         return (P.T @ sum(masses[1:], masses[0]) @ P).tocsr()
 
 

@@ -84,3 +84,14 @@ def a2_terms(
     terms["a2.residual"] = sum(terms[k] for k in AFTER) - sum(terms[k] for k in BEFORE)
     terms["a2.scale"] = sum(abs(terms[k]) for k in AFTER + BEFORE)
     return terms
+
+
+def ledger_groups(energy: dict[str, float]) -> tuple[dict, dict, dict]:
+    """The A2 terms of a step as groups of :func:`multilayer.ledger.close`: (stored, work, dissipation)."""
+    stored = {"kinetic.fluid": energy["fluid.kinetic"]}
+    work = {"work.inlet": energy["inlet.work"], "work.outlet": energy["outlet.work"]}
+    dissipation = {
+        "dissipation.viscous.fluid": energy["fluid.viscous_dissipation"],
+        "dissipation.numerical.A2": energy["fluid.numerical_dissipation"] + energy["thin.numerical_dissipation"],
+    }
+    return stored, work, dissipation

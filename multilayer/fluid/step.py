@@ -40,6 +40,7 @@ from multilayer.fluid.channel import Channel
 from multilayer.fluid.ledger import a2_terms
 from multilayer.fluid.pattern import Pattern
 from multilayer.linsolve import Factorized, SolverStats, factorize
+from multilayer.spaces import prolongation_dofs
 
 WALL_MODES = ("coupled", "rigid", "prescribed")
 
@@ -119,7 +120,7 @@ class FluidStep:
         self._slots_uu = self.pattern.slots(*uu)
         self._slots_pu = self.pattern.slots(*pu)
         self._slots_up = self.pattern.slots(*pu[::-1])
-        self._wall_dof = sp.csc_matrix(channel.prolongation).indices  # velocity DOF of each line DOF
+        self._wall_dof = prolongation_dofs(channel.prolongation)  # velocity DOF of each line DOF
 
         fixed = [channel.normal_r, channel.wall_z]
         if wall != "coupled":
@@ -135,6 +136,7 @@ class FluidStep:
         self._constant: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._data: np.ndarray | None = None
         self._factorized: Factorized | None = None
+        self._robin_cache: tuple | None = None
 
     # -- assembly -------------------------------------------------------------
 
@@ -159,12 +161,17 @@ class FluidStep:
         return K, K_mass, K_div
 
     def _robin(self, robin_mass: sp.spmatrix | None) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(slots, values) of (1/Δt) P M Pᵀ, the thin layer's inertia on the wall u_r DOFs."""
+        """(slots, values) of (1/Δt) P M Pᵀ, the thin layer's inertia on the wall u_r DOFs.
+
+        A coupler hands the same matrix every step: its slots are looked up once.
+        """
         if robin_mass is None:
             return []
-        M = sp.coo_matrix(robin_mass)
-        rows, cols = self._wall_dof[M.row], self._wall_dof[M.col]
-        return [(self.pattern.slots(rows, cols), M.data / self.dt)]
+        if self._robin_cache is None or self._robin_cache[0] is not robin_mass:
+            M = sp.coo_matrix(robin_mass)
+            rows, cols = self._wall_dof[M.row], self._wall_dof[M.col]
+            self._robin_cache = (robin_mass, self.pattern.slots(rows, cols), M.data / self.dt)
+        return [self._robin_cache[1:]]
 
     def assemble(
         self,
@@ -260,8 +267,10 @@ class FluidStep:
         t1 = time.perf_counter()
         u, p = x[: ch.nu], x[ch.nu :]
         v = ch.wall_trace(u)
-        A = self.pattern.matrix(data)
-        wall_work = self.dt * float(fixed_values @ (A @ x - b)[self.fixed])
+        wall_work = 0.0  # the reaction's power: nonzero only where u_r is prescribed
+        if self.wall == "prescribed":
+            A = self.pattern.matrix(data)
+            wall_work = self.dt * float(fixed_values @ (A @ x - b)[self.fixed])
         energy = a2_terms(
             ch, self.density, self.viscosity, self.dt, fields, state.u, u, v_half, v,
             p_in, p_out, robin_mass, wall_work,
