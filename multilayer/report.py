@@ -1,6 +1,6 @@
 """The comparison report as people read it: a Markdown table and two PNG figures.
 
-The numbers come measured from :mod:`multilayer.compare`; this module
+The numbers come measured from :mod:`multilayer.measure`; this module
 only lays them out.  The figures are drawn on Agg canvases (no display, no
 global pyplot state).
 """

@@ -19,7 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from multilayer.casefile import load_case
-from multilayer.compare import lumen_eta, read_series
+from multilayer.measure import lumen_eta, read_series
 from multilayer.registry import Registry
 from multilayer.run import run_case
 

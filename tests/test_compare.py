@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer import compare
+from multilayer import measure, variants
 from multilayer.cli import main
 from multilayer.registry import Registry
 from multilayer.report import markdown
@@ -114,7 +114,7 @@ def test_four_times_the_tension_doubles_the_measured_speed(tension):
 def test_spacetime_field_is_eta_on_the_lumen_line(tension):
     _, out, report = tension
     folder = out / report["variants"][1]["out"]
-    z, t, eta = compare.lumen_eta(folder, radius=0.5)
+    z, t, eta = measure.lumen_eta(folder, radius=0.5)
     assert np.all(np.diff(z) > 0) and z[0] == 0.0 and z[-1] == 6.0
     series = read_columns(folder / "series.csv")
     j = int(np.argmin(abs(z - 3.0)))
@@ -153,8 +153,8 @@ def test_synthetic_pulses_give_the_exact_speed(tmp_path):
         (folder / "summary.json").write_text(json.dumps(
             {"status": "ok", "case": case, "steps": len(t), "wall_time_s": 1.0, "dofs": {"wall": 7, "fluid": 5}}))
         folders.append((label, folder))
-    runs = [compare.read_run(label, folder) for label, folder in folders]
-    fine, coarse = compare.compare_runs(runs, Registry.load())
+    runs = [measure.read_run(label, folder) for label, folder in folders]
+    fine, coarse = measure.compare_runs(runs, Registry.load())
     for column in (fine, coarse):
         assert column["wave_speed_peak"] == pytest.approx(c, rel=1e-9)
         assert column["wave_speed_half_peak"] == pytest.approx(c, rel=1e-9)
@@ -183,13 +183,13 @@ def test_synthetic_pulses_give_the_exact_speed(tmp_path):
 
 def test_differences_interpolate_in_time():
     t_fine, t_coarse = np.linspace(0.1, 1.0, 10), np.linspace(0.2, 1.0, 5)
-    assert compare.max_abs_difference(t_fine, 3 * t_fine, t_coarse, 3 * t_coarse) == pytest.approx(0.0, abs=1e-15)
-    assert compare.max_abs_difference(t_fine, t_fine + 0.25, t_coarse, t_coarse) == pytest.approx(0.25)
+    assert measure.max_abs_difference(t_fine, 3 * t_fine, t_coarse, 3 * t_coarse) == pytest.approx(0.0, abs=1e-15)
+    assert measure.max_abs_difference(t_fine, t_fine + 0.25, t_coarse, t_coarse) == pytest.approx(0.25)
     # the largest difference sits at a kink of one series only: both grids are needed
     t, flat = np.array([0.0, 2.0]), np.zeros(2)
-    assert compare.max_abs_difference(t, flat, np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0])) == 1.0
-    assert compare.max_abs_difference(np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0]), t, flat) == 1.0
-    assert compare.max_abs_difference(t, flat, t + 3.0, flat) is None  # no common time
+    assert measure.max_abs_difference(t, flat, np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0])) == 1.0
+    assert measure.max_abs_difference(np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0]), t, flat) == 1.0
+    assert measure.max_abs_difference(t, flat, t + 3.0, flat) is None  # no common time
 
 
 PULSE = CASES / "pulse-koiter-thick.toml"  # fluid | Koiter shell | thick band, inlet cosine pulse
@@ -284,9 +284,9 @@ def test_bad_vary_syntax_exits_2_with_a_clear_message(tmp_path, capsys, vary, me
 
 
 def test_vary_values_split_like_set_values_inside_tables_and_strings():
-    key, values = compare.parse_vary(f'layers[0]={WAVE}, {SHELL}')
+    key, values = variants.parse_vary(f'layers[0]={WAVE}, {SHELL}')
     assert key == "layers[0]" and values == [WAVE, SHELL]
-    _, values = compare.parse_vary('title="a, b",\'c,d\',"e\\",f"')
+    _, values = variants.parse_vary('title="a, b",\'c,d\',"e\\",f"')
     assert values == ['"a, b"', "'c,d'", '"e\\",f"']
 
 

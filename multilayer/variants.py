@@ -1,0 +1,180 @@
+"""Variants of one scene: case files with overrides, from files or from ``--vary``.
+
+A variant is a case file plus overrides.  Several case files give one
+variant each; one case file with ``--vary KEY=A,B,...`` gives one variant per
+value, each value read exactly like a ``--set`` value (a whole inline table
+included, so a layer can change model together with its parameters).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import attrs
+
+from multilayer.casefile import key_steps, load_case, parse_value
+from multilayer.problems import CaseError, Problem
+from multilayer.registry import Registry
+
+#: snapshots per run when a case writes none (the space–time plot needs them)
+SNAPSHOTS = 100
+
+
+@attrs.frozen
+class Variant:
+    """One column of the comparison: a case file, its overrides, its results folder name."""
+
+    label: str
+    case_file: Path
+    overrides: tuple[str, ...] = ()
+
+
+def split_values(text: str) -> list[str]:
+    """Split ``text`` on the commas outside braces, brackets and TOML strings.
+
+    >>> split_values('2e4, 8e4')
+    ['2e4', '8e4']
+    >>> split_values('{model="a",x=[1,2]},"b,c"')
+    ['{model="a",x=[1,2]}', '"b,c"']
+    >>> split_values('{model="a"')
+    Traceback (most recent call last):
+    ...
+    ValueError: unbalanced '{': no closing '}'
+    """
+    closing = {"{": "}", "[": "]"}
+    values, stack, quote, start, i = [], [], "", 0, 0
+    while i < len(text):
+        c = text[i]
+        if quote:
+            if c == "\\" and quote == '"':
+                i += 1  # an escaped character cannot end the string
+            elif c == quote:
+                quote = ""
+        elif c in "\"'":
+            quote = c
+        elif c in closing:
+            stack.append(c)
+        elif c in "}]":
+            if not stack or closing[stack[-1]] != c:
+                raise ValueError(f"unbalanced {c!r} at character {i + 1}")
+            stack.pop()
+        elif c == "," and not stack:
+            values.append(text[start:i].strip())
+            start = i + 1
+        i += 1
+    if quote:
+        raise ValueError(f"unterminated string: no closing {quote}")
+    if stack:
+        raise ValueError(f"unbalanced {stack[-1]!r}: no closing {closing[stack[-1]]!r}")
+    values.append(text[start:].strip())
+    return values
+
+
+def parse_vary(text: str) -> tuple[str, list[str]]:
+    """``KEY=A,B,...`` → (KEY, [A, B, ...]); CaseError at ``--vary`` when malformed.
+
+    >>> parse_vary("layers[0].tension=2e4,8e4")
+    ('layers[0].tension', ['2e4', '8e4'])
+    >>> parse_vary("tension")
+    Traceback (most recent call last):
+    ...
+    multilayer.problems.CaseError: --vary = 'tension': expected KEY=A,B[,C...] with KEY like time.dt or layers[0].young
+    """
+    key, eq, rest = text.partition("=")
+    key = key.strip()
+    if not eq or not key_steps(key):
+        raise CaseError([Problem("--vary", text, "expected KEY=A,B[,C...] with KEY like time.dt or layers[0].young")])
+    try:
+        values = split_values(rest)
+    except ValueError as exc:
+        raise CaseError([Problem("--vary", text, f"cannot split the values: {exc}")]) from None
+    if any(not v for v in values):
+        raise CaseError([Problem("--vary", text, "an empty value", "two commas in a row, or one at an end?")])
+    if len(values) < 2:
+        raise CaseError([Problem("--vary", text, "expected two or more values, separated by commas")])
+    return key, values
+
+
+def sanitize(text: str) -> str:
+    """A folder name from free text: letters, digits and ``._+=-`` only, never a leading dash.
+
+    >>> sanitize("tension=2e4"), sanitize("a b/c"), sanitize("-1e9"), sanitize("{}")
+    ('tension=2e4', 'a_b_c', '1e9', 'variant')
+    """
+    name = re.sub(r"[^A-Za-z0-9._+=-]+", "_", text).strip("_.-")
+    return name[:48] or "variant"
+
+
+def unique(labels: Sequence[str]) -> list[str]:
+    """The labels, a repeated one suffixed ``-2``, ``-3``, ...
+
+    >>> unique(["a", "b", "a", "a"])
+    ['a', 'b', 'a-2', 'a-3']
+    """
+    out: list[str] = []
+    for label in labels:
+        name, n = label, 1
+        while name in out:
+            n += 1
+            name = f"{label}-{n}"
+        out.append(name)
+    return out
+
+
+def _vary_label(key: str, text: str) -> str:
+    value = parse_value(text)
+    if isinstance(value, Mapping):
+        return sanitize(str(value.get("model", key)))
+    tail = [s for s in key_steps(key) if isinstance(s, str)][-1]
+    return sanitize(f"{tail}={text}")
+
+
+def make_variants(case_files: Sequence[Path], vary: str | None = None, overrides: Sequence[str] = ()) -> list[Variant]:
+    """The variants of a comparison; CaseError when there are fewer than two or ``--vary`` is malformed.
+
+    ``overrides`` (``--set``) apply to every variant, the varied value last.
+
+    >>> [v.label for v in make_variants([Path("m.toml")], "layers[0].tension=2e4,8e4")]
+    ['tension=2e4', 'tension=8e4']
+    >>> [v.label for v in make_variants([Path("a/m.toml"), Path("b/m.toml")])]
+    ['m', 'm-2']
+    """
+    files = [Path(f) for f in case_files]
+    if vary is not None:
+        key, values = parse_vary(vary)
+        if len(files) != 1:
+            raise CaseError([Problem("--vary", vary, f"varies one case file; got {len(files)}")])
+        labels = unique([_vary_label(key, v) for v in values])
+        return [Variant(label, files[0], (*overrides, f"{key}={v}")) for label, v in zip(labels, values)]
+    if len(files) < 2:
+        raise CaseError([Problem("compare", [str(f) for f in files], "expected two or more case files, "
+                                 "or one with --vary KEY=A,B")])
+    labels = unique([sanitize(f.stem) for f in files])
+    return [Variant(label, f, tuple(overrides)) for label, f in zip(labels, files)]
+
+
+def load_variants(
+    variants: Sequence[Variant], registry: Registry
+) -> tuple[list[tuple[Variant, Any]], dict[str, list[Problem]]]:
+    """Validate every variant: ((variant, case) pairs, problems by label).
+
+    A case that writes no snapshots (``output.every = 0``) gets
+    ``output.every = max(1, steps // 100)`` added to its overrides: the
+    space–time plot of η reads the wall snapshots.
+    """
+    loaded, invalid = [], {}
+    for variant in variants:
+        try:
+            case = load_case(variant.case_file, variant.overrides, registry)
+            if case.output.every == 0:
+                variant = attrs.evolve(variant, overrides=(
+                    *variant.overrides, f"output.every={max(1, case.time.steps // SNAPSHOTS)}"))
+                case = load_case(variant.case_file, variant.overrides, registry)
+        except CaseError as exc:
+            invalid[variant.label] = exc.problems
+            continue
+        loaded.append((variant, case))
+    return loaded, invalid
