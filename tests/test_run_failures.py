@@ -5,6 +5,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 from multilayer.cli import main
@@ -57,6 +58,7 @@ def test_a_plugin_with_non_finite_matrices_is_named(tmp_path):
     assert "layers[0]" in summary["reason"] and "non-finite" in summary["reason"]
 
 
+@pytest.mark.filterwarnings("ignore:invalid value encountered in sqrt")  # the load is NaN on purpose
 def test_non_finite_state_stops_the_run_with_time(tmp_path):
     out = tmp_path / "nan-load"
     # a load that turns NaN at t > 1e-4 (sqrt of a negative number)
@@ -70,6 +72,7 @@ def test_non_finite_state_stops_the_run_with_time(tmp_path):
     assert len(rows) == 5  # steps up to t = 1e-4 were fine and are kept
 
 
+@pytest.mark.filterwarnings("ignore:invalid value encountered in sqrt")  # the load is NaN on purpose
 def test_a_rerun_into_the_same_folder_leaves_no_stale_results(tmp_path):
     out = tmp_path / "again"
     assert main(["run", str(CASES / "membrane-mode.toml"), "--out", str(out), "--set", "output.every=100"]) == 0
