@@ -18,7 +18,7 @@ import attrs
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import LayerMatrices, LineSpace, ThinLayer
 from multilayer.records import LayerPlugin, Param
-from multilayer_plugins.thin_shell import KoiterFamilyLayer
+from multilayer_plugins.thin_shell import KoiterFamilyLayer, mass_params
 
 _poisson = [attrs.validators.gt(-1.0), attrs.validators.lt(0.5)]
 
@@ -116,8 +116,7 @@ def multilayer_layers() -> list[LayerPlugin]:
             name="koiter-shell",
             factory=koiter_shell,
             params=(
-                Param("density", "ρ₁", "g/cm³", gt=0.0, doc="density of the shell"),
-                Param("thickness", "h", "cm", gt=0.0, doc="thickness of the shell"),
+                *mass_params("shell"),
                 Param("young", "E", "dyn/cm²", default=None, gt=0.0,
                       doc="Young's modulus (with poisson; excludes C0, C1, C2)"),
                 Param("poisson", "σ", "", default=None, gt=-1.0, lt=0.5,

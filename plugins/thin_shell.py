@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from skfem import BilinearForm, asm
 
 from multilayer.interfaces import LayerMatrices, LineSpace, ThinLayer
+from multilayer.records import Param
 
 
 @BilinearForm
@@ -209,3 +210,9 @@ class KoiterFamilyLayer(ThinLayer):
     def long_wave_stiffness(self, radius: float | None = None) -> float:
         """C0 (dyn/cm³); the coefficients are given, so ``radius`` is not needed."""
         return self.C0
+
+
+def mass_params(what: str) -> tuple[Param, Param]:
+    """The parameters of ρ₁h every thin layer has: ``density`` and ``thickness`` of ``what``."""
+    return (Param("density", "ρ₁", "g/cm³", gt=0.0, doc=f"density of the {what}"),
+            Param("thickness", "h", "cm", gt=0.0, doc=f"thickness of the {what}"))

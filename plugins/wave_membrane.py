@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from multilayer.hookspecs import hookimpl
 from multilayer.records import LayerPlugin, Param
-from multilayer_plugins.thin_shell import KoiterFamilyLayer
+from multilayer_plugins.thin_shell import KoiterFamilyLayer, mass_params
 
 
 def wave_membrane(density: float, thickness: float, tension: float) -> KoiterFamilyLayer:
@@ -28,8 +28,7 @@ def multilayer_layers() -> list[LayerPlugin]:
             name="wave-membrane",
             factory=wave_membrane,
             params=(
-                Param("density", "ρ₁", "g/cm³", gt=0.0, doc="density of the membrane"),
-                Param("thickness", "h", "cm", gt=0.0, doc="thickness of the membrane"),
+                *mass_params("membrane"),
                 Param("tension", "C1", "dyn/cm", ge=0.0, doc="tension (the seed's c²)"),
             ),
             doc="Wave-equation membrane: ρ₁h η_tt = C1 η_zz + f, ends pinned.",
