@@ -4,29 +4,18 @@ The cases in ``cases/`` double as regression tests (scikit-fem's examples
 style): each asserts a scalar the physics fixes.
 """
 
-import csv
-import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from multilayer.cli import main
 from multilayer.signals import backward_euler_eigenvalue, prony_roots
+from runs import CASES, run_cli
 
-CASES = Path(__file__).parents[1] / "cases"
 
 
 def run(case, tmp_path, *sets):
-    out = tmp_path / case
-    argv = ["run", str(CASES / f"{case}.toml"), "--out", str(out)]
-    for s in sets:
-        argv += ["--set", s]
-    code = main(argv)
-    summary = json.loads((out / "summary.json").read_text())
-    with open(out / "series.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    return code, summary, rows
+    return run_cli(case, tmp_path / case, *sets)
 
 
 def semi_discrete_lambda(signal, dt):

@@ -4,9 +4,6 @@ Measured numbers quoted in the comments come from these tests
 (``pytest -s tests/test_coupled.py``) and are collected in docs/scheme.md.
 """
 
-import csv
-import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +11,8 @@ import pytest
 import multilayer_plugins.kinematic_splitting as ks
 from multilayer.cli import main
 from multilayer.structure import StructureStep
+from runs import CASES, run_cli
 
-CASES = Path(__file__).parents[1] / "cases"
 COUPLED = sorted(p.stem for p in CASES.glob("*.toml")
                  if "kinematic-splitting" in p.read_text() and "[fluid]" in p.read_text())
 PROBES = [f"eta_z{k}" for k in (1, 2, 3, 4, 5)]
@@ -23,13 +20,7 @@ COARSE = ("mesh.nz=12", "mesh.nr=3", "time.end=0.002")
 
 
 def run(case, out, *sets):
-    argv = ["run", str(CASES / f"{case}.toml"), "--out", str(out)]
-    for s in sets:
-        argv += ["--set", s]
-    code = main(argv)
-    summary = json.loads((Path(out) / "summary.json").read_text())
-    with open(Path(out) / "series.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    code, summary, rows = run_cli(case, out, *sets)
     cols = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
     return code, summary, cols
 

@@ -5,30 +5,20 @@ checks read ``summary.json``, ``series.csv`` and the fluid snapshots, as a
 user of the results folder would.
 """
 
-import csv
-import json
-from pathlib import Path
 
 import meshio
 import numpy as np
 import pytest
 
-from multilayer.cli import main
 from multilayer.linsolve import BACKENDS
+from runs import run_cli
 
-CASES = Path(__file__).parents[1] / "cases"
 MU, RHO = 0.035, 1.0
 
 
 def run(case, out, *sets):
-    argv = ["run", str(CASES / f"{case}.toml"), "--out", str(out)]
-    for s in sets:
-        argv += ["--set", s]
-    code = main(argv)
-    summary = json.loads((out / "summary.json").read_text())
-    with open(out / "series.csv") as fh:
-        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
-    return code, summary, rows
+    code, summary, rows = run_cli(case, out, *sets)
+    return code, summary, [{k: float(v) for k, v in r.items()} for r in rows]
 
 
 def column(rows, name):
