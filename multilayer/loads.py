@@ -325,7 +325,7 @@ def load_from_spec(
     --------
     >>> load_from_spec(0, "loads.outlet").to_dict()
     {'kind': 'constant', 'value': 0.0}
-    >>> load_from_spec("1e4*t", "loads.inlet").average(0.0, 2.0)
+    >>> round(load_from_spec("1e4*t", "loads.inlet").average(0.0, 2.0), 9)
     10000.0
     >>> load_from_spec({"kind": "cosine-pulse", "amplitude": 1.3333e4, "duration": 0.003}, "loads.inlet").kind
     'cosine-pulse'
