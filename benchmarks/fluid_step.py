@@ -32,7 +32,7 @@ import numpy as np
 import scipy
 from skfem import BilinearForm, asm
 
-from multilayer.fluid import NavierStokes, Stokes
+from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer.linsolve import BACKENDS
 
 L, R, MU, RHO, DT = 6.0, 0.5, 0.035, 1.0, 1e-4

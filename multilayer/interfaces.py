@@ -192,7 +192,7 @@ class ThickLayer(Layer):
 class Fluid(ABC):
     """An incompressible fluid in the channel under the wall (SCHEME §3, step A2).
 
-    The couplers rely on exactly these methods; ``multilayer.fluid.model.ChannelFluid``
+    The couplers rely on exactly these methods; ``multilayer_plugins.channel.model.ChannelFluid``
     implements them on the ALE reference channel.  Line vectors (η, v) are in
     the numbering of :attr:`line`, the interface line r = R shared with the wall.
     """

@@ -15,8 +15,8 @@ from multilayer import ledger
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, StepReport
 from multilayer.records import CouplerPlugin
-from multilayer.fluid.ledger import ledger_groups
-from multilayer.fluid.model import wall_motion
+from multilayer_plugins.channel.ledger import ledger_groups
+from multilayer_plugins.channel.model import wall_motion
 
 
 class FluidOnly(Coupler):

@@ -24,7 +24,7 @@ from multilayer import ledger
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, StepReport
 from multilayer.records import CouplerPlugin
-from multilayer.fluid.ledger import ledger_groups
+from multilayer_plugins.channel.ledger import ledger_groups
 from multilayer.structure import StructureStep
 from multilayer.wall import LUMEN
 

@@ -2,13 +2,13 @@
 
 ALE on the fixed reference channel, skew-symmetric advection with the
 domain velocity of the structure step, dynamic pressure at inlet and
-outlet.  The model lives in :mod:`multilayer.fluid`; ``stokes`` is the same
+outlet.  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
 class with the advection terms off.
 """
 
 from __future__ import annotations
 
-from multilayer.fluid import PARAMS, NavierStokes
+from multilayer_plugins.channel import PARAMS, NavierStokes
 from multilayer.hookspecs import hookimpl
 from multilayer.records import FluidPlugin
 

@@ -6,7 +6,7 @@ included: it belongs to the moving domain, not to advection.
 
 from __future__ import annotations
 
-from multilayer.fluid import PARAMS, Stokes
+from multilayer_plugins.channel import PARAMS, Stokes
 from multilayer.hookspecs import hookimpl
 from multilayer.records import FluidPlugin
 

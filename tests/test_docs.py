@@ -10,7 +10,7 @@ import multilayer_plugins
 from multilayer import hookspecs
 from multilayer.registry import Registry
 
-PLUGIN_MODULES = sorted(m.name for m in pkgutil.iter_modules(multilayer_plugins.__path__))
+PLUGIN_MODULES = sorted(m.name for m in pkgutil.walk_packages(multilayer_plugins.__path__, prefix="multilayer_plugins."))
 
 
 @pytest.mark.parametrize("name", ["multilayer_layers", "multilayer_fluids", "multilayer_couplers"])
@@ -28,7 +28,7 @@ def test_every_hook_is_in_the_plugin_docs():
 
 @pytest.mark.parametrize("module", PLUGIN_MODULES)
 def test_plugin_module_doctests(module):
-    mod = importlib.import_module(f"multilayer_plugins.{module}")
+    mod = importlib.import_module(module)
     result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
     assert result.failed == 0
 

@@ -1,4 +1,4 @@
-"""The A2 forms, the ALE fields and the batched assembly (multilayer.fluid)."""
+"""The A2 forms, the ALE fields and the batched assembly (multilayer_plugins.channel)."""
 
 import doctest
 
@@ -7,25 +7,25 @@ import pytest
 import scipy.sparse as sp
 from skfem import asm
 
-import multilayer.fluid.ale
-import multilayer.fluid.batched
-import multilayer.fluid.channel
-import multilayer.fluid.model
-import multilayer.fluid.pattern
-from multilayer.fluid import forms
-from multilayer.fluid.ale import ALEFields
-from multilayer.fluid.batched import BatchedForm
-from multilayer.fluid.channel import Channel
+import multilayer_plugins.channel.ale
+import multilayer.assembly.batched
+import multilayer_plugins.channel.channel
+import multilayer_plugins.channel.model
+import multilayer.assembly.pattern
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer.assembly.batched import BatchedForm
+from multilayer_plugins.channel.channel import Channel
 
 
 @pytest.mark.parametrize(
     "module",
     [
-        multilayer.fluid.ale,
-        multilayer.fluid.batched,
-        multilayer.fluid.channel,
-        multilayer.fluid.model,
-        multilayer.fluid.pattern,
+        multilayer_plugins.channel.ale,
+        multilayer.assembly.batched,
+        multilayer_plugins.channel.channel,
+        multilayer_plugins.channel.model,
+        multilayer.assembly.pattern,
     ],
 )
 def test_doctests(module):

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from skfem import BilinearForm, asm
 
-from multilayer.fluid import NavierStokes, Stokes, wall_motion
-from multilayer.fluid.ale import ALEFields
-from multilayer.fluid.ledger import end_fluxes
-from multilayer.fluid.probes import wall_displacement
+from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.ledger import end_fluxes
+from multilayer_plugins.channel.probes import wall_displacement
 
 L, R, MU, RHO = 2.0, 0.5, 0.035, 1.0
 A, T0 = 0.05, 0.1

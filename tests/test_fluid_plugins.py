@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from skfem import BilinearForm, asm
 
-from multilayer.fluid import ChannelFluid, NavierStokes, Stokes
+from multilayer_plugins.channel import ChannelFluid, NavierStokes, Stokes
 from multilayer.interfaces import Fluid
 from multilayer.registry import Registry
 

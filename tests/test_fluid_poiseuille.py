@@ -15,8 +15,8 @@ Re 0.85, 4.41e-5 at Re 0.0085).
 import numpy as np
 import pytest
 
-from multilayer.fluid import NavierStokes, Stokes
-from multilayer.fluid.probes import l2_error
+from multilayer_plugins.channel import NavierStokes, Stokes
+from multilayer_plugins.channel.probes import l2_error
 
 L, R, MU, RHO = 6.0, 0.5, 0.035, 1.0
 

@@ -22,8 +22,8 @@ relative to G/(ωρ) √(LR).  Measured (ω = 2π s⁻¹, Womersley number 6.7):
 import numpy as np
 import pytest
 
-from multilayer.fluid import NavierStokes, Stokes
-from multilayer.fluid.probes import l2_error
+from multilayer_plugins.channel import NavierStokes, Stokes
+from multilayer_plugins.channel.probes import l2_error
 
 L, R, MU, RHO = 1.0, 0.5, 0.035, 1.0
 PERIOD = 1.0

@@ -1,14 +1,14 @@
 """The terms of SCHEME §3 step A2 as scikit-fem forms on the reference channel.
 
 Every form is written on Ω̂ with the ALE coefficient fields of
-:class:`multilayer.fluid.ale.ALEFields` passed as ``w`` arguments (``J``,
+:class:`multilayer_plugins.channel.ale.ALEFields` passed as ``w`` arguments (``J``,
 ``gz``, ``gr``, and ``dJdt`` / ``a`` where a term needs them), and without
 its physical constant: the step multiplies ``mass_J`` by ρ_f/Δt,
 ``advection_skew`` by ρ_f, ``moving_domain`` by ρ_f, ``viscous`` by 2μ, and
 the ``dynamic_pressure`` load by P_in or P_out.
 
 The forms use component indexing and elementwise arithmetic only (no
-einsum), so that :class:`multilayer.fluid.batched.BatchedForm` can call
+einsum), so that :class:`multilayer.assembly.batched.BatchedForm` can call
 them on all pairs of basis functions at once; ``skfem.asm`` works too.
 Coefficients multiply one factor before the product (``dot(J u, q)``, not
 ``J dot(u, q)``): batched, the factors are per function, the product per pair.

@@ -12,7 +12,7 @@ with a small kernel K (6 × 6 for the velocity block) that holds every
 coefficient field.  K is obtained by calling the form once on unit jets;
 the element matrices are then A_e = Σ_q dx_q Ξ_q,eᵀ K_q,e Ξ_u,e, two
 batched matrix products with the jets Ξ of the reference basis, stacked
-once at setup.  The form functions of :mod:`multilayer.fluid.forms` are
+once at setup.  The form functions of :mod:`multilayer_plugins.channel.forms` are
 used unchanged (they also run under ``skfem.asm``; a test checks that both
 give the same matrices).
 """

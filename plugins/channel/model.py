@@ -3,7 +3,7 @@
 ``navier-stokes`` and ``stokes`` are the same model of SCHEME §3 A2; Stokes
 drops the two advection terms and keeps everything else, the moving-domain
 term included.  The model holds its physical parameters; :meth:`setup`
-attaches a discretization (a :class:`multilayer.fluid.step.FluidStep`) on
+attaches a discretization (a :class:`multilayer_plugins.channel.step.FluidStep`) on
 which the other methods act.
 """
 
@@ -15,11 +15,11 @@ from typing import ClassVar
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.fluid import probes
-from multilayer.fluid.ale import ALEFields
-from multilayer.fluid.channel import Channel
-from multilayer.fluid.ledger import fluid_kinetic
-from multilayer.fluid.step import FluidState, FluidStep, StepResult
+from multilayer_plugins.channel import probes
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.ledger import fluid_kinetic
+from multilayer_plugins.channel.step import FluidState, FluidStep, StepResult
 from multilayer.interfaces import Fluid, LineSpace
 from multilayer.records import Param
 
@@ -80,7 +80,7 @@ class ChannelFluid(Fluid):
         """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``, step ``dt`` (s).
 
         ``wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
-        :mod:`multilayer.fluid.step`); ``line`` is the interface line's space
+        :mod:`multilayer_plugins.channel.step`); ``line`` is the interface line's space
         when the caller already has it.  Returns the step object, which is
         also kept on the fluid for the methods below.
         """
@@ -128,7 +128,7 @@ class ChannelFluid(Fluid):
         p_out: float = 0.0,
         robin_mass: sp.spmatrix | None = None,
     ) -> StepResult:
-        """One A2 step; see :meth:`multilayer.fluid.step.FluidStep.step`."""
+        """One A2 step; see :meth:`multilayer_plugins.channel.step.FluidStep.step`."""
         return self.discrete.step(state, eta, v_half, p_in, p_out, robin_mass)
 
     def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:

@@ -20,7 +20,7 @@ Wall modes:
     the velocity of a wall moved by a given law.
 
 The matrix is assembled into a sparsity pattern fixed at setup
-(:class:`multilayer.fluid.pattern.Pattern`).  In the rigid mode only the
+(:class:`multilayer.assembly.pattern.Pattern`).  In the rigid mode only the
 advection term changes between steps (the rest is assembled once), and a
 Stokes fluid on a rigid wall has a constant matrix: it is factorized once.
 """
@@ -33,12 +33,12 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.fluid import forms
-from multilayer.fluid.ale import ALEFields
-from multilayer.fluid.batched import BatchedForm
-from multilayer.fluid.channel import Channel
-from multilayer.fluid.ledger import a2_terms
-from multilayer.fluid.pattern import Pattern
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer.assembly.batched import BatchedForm
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.ledger import a2_terms
+from multilayer.assembly.pattern import Pattern
 from multilayer.linsolve import Factorized, SolverStats, factorize
 from multilayer.spaces import prolongation_dofs
 

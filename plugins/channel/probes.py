@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from multilayer.fluid.channel import Channel
+from multilayer_plugins.channel.channel import Channel
 
 
 def wall_displacement(channel: Channel, eta: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -18,8 +18,8 @@ module              what it holds
 ==================  ====================================================
 """
 
-from multilayer.fluid.model import PARAMS, ChannelFluid, NavierStokes, Stokes, wall_motion
-from multilayer.fluid.step import FluidState, FluidStep, StepResult
+from multilayer_plugins.channel.model import PARAMS, ChannelFluid, NavierStokes, Stokes, wall_motion
+from multilayer_plugins.channel.step import FluidState, FluidStep, StepResult
 
 __all__ = [
     "PARAMS",

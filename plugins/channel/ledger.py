@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.fluid import forms
-from multilayer.fluid.ale import ALEFields
-from multilayer.fluid.channel import Channel
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
 
 #: Terms on the left of the identity (after the step) and on the right (before it, plus work).
 AFTER = (

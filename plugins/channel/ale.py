@@ -17,7 +17,7 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
-from multilayer.fluid.channel import Channel
+from multilayer_plugins.channel.channel import Channel
 
 
 @attrs.frozen(eq=False)
@@ -70,5 +70,5 @@ class ALEFields:
         return cls.at(channel, zero, zero)
 
     def forms_kwargs(self) -> dict[str, np.ndarray]:
-        """The fields as the ``w`` arguments of :mod:`multilayer.fluid.forms`."""
+        """The fields as the ``w`` arguments of :mod:`multilayer_plugins.channel.forms`."""
         return {"J": self.J, "gz": self.gz, "gr": self.gr}
