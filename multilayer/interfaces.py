@@ -1,4 +1,4 @@
-"""Abstract interfaces: Layer (thin or thick), Fluid, Coupler — and the spaces they see.
+"""Abstract interfaces: Layer (thin or thick), Fluid, Coupler — and the spaces and values they exchange.
 
 The core assembles any wall from the contributions of its layers without
 knowing a concrete model.  A layer contributes
@@ -18,7 +18,7 @@ next to it).  A thick layer is a radial band and is given a :class:`BandSpace`
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import attrs
@@ -31,7 +31,10 @@ if TYPE_CHECKING:  # pragma: no cover
     import skfem
 
     from multilayer.case import Case
-    from multilayer.scene import Scene
+    from multilayer.linsolve import SolverStats
+    from multilayer.setup import Setup
+    from multilayer.state import State
+    from multilayer.timescheme import TimeScheme
 
 
 @attrs.frozen(eq=False)
@@ -189,12 +192,48 @@ class ThickLayer(Layer):
         return np.union1d(space.side_dofs("z=0"), space.side_dofs("z=L"))
 
 
-class Fluid(ABC):
-    """An incompressible fluid in the channel under the wall (SCHEME §3, step A2).
+@attrs.frozen(eq=False)
+class Domain:
+    """The fluid domain of one step, explicit in time: line vectors on the interface line.
 
-    The couplers rely on exactly these methods; ``multilayer_plugins.channel.model.ChannelFluid``
-    implements them on the ALE reference channel.  Line vectors (η, v) are in
-    the numbering of :attr:`line`, the interface line r = R shared with the wall.
+    ``eta`` is the wall displacement of the geometry the step is assembled
+    on (J_m, ∇^η); ``velocity`` the wall velocity c that moves the domain
+    during the step (∂_t J = c/R, ALE velocity w = c r̂/R).
+    """
+
+    eta: np.ndarray
+    velocity: np.ndarray
+
+    @classmethod
+    def still(cls, n: int) -> Domain:
+        """The reference channel at rest (n line DOFs)."""
+        return cls(np.zeros(n), np.zeros(n))
+
+
+@attrs.frozen(eq=False)
+class Interface:
+    """Terms a coupler adds on the fluid's wall u_r rows, in line numbering: R v̄ − r.
+
+    In the kinematically coupled scheme R = (α₀/β₀) M/Δt with M = ρ₁h∫vψ the
+    thin layer's mass (the Robin term) and r the old thin-layer inertia.
+    """
+
+    matrix: sp.spmatrix
+    rhs: np.ndarray
+
+
+class Fluid(ABC):
+    """An incompressible fluid in the channel under the wall.
+
+    A fluid is discretized once (:meth:`setup`) for a wall mode, then
+    advanced step by step by a coupler through :meth:`system` (the linear
+    system of one step on a given domain, for a time scheme), :meth:`solve`
+    and :meth:`identity` (the step's energy terms); :meth:`step` does the
+    three.  A monolithic coupler takes the system's matrix and right-hand
+    side (:meth:`matrix`), adds the wall to them through
+    :attr:`interface_dofs`, solves, and hands the solution back with
+    :meth:`advance`.  Line vectors (η, v) are in the numbering of
+    :attr:`line`, the interface line r = R shared with the wall.
     """
 
     density: float  #: ρ_f (g/cm³)
@@ -202,8 +241,7 @@ class Fluid(ABC):
 
     @abstractmethod
     def setup(self, length: float, radius: float, nz: int, nr: int, order: int = 2, grading: float = 1.0,
-              dt: float = 1e-4, wall: str = "coupled", solver: str = "superlu",
-              line: LineSpace | None = None) -> Any:
+              wall: str = "coupled", solver: str = "superlu", line: LineSpace | None = None) -> Any:
         """Discretize for a wall mode ``coupled``, ``rigid`` or ``prescribed``."""
 
     @property
@@ -211,18 +249,72 @@ class Fluid(ABC):
     def line(self) -> LineSpace:
         """The interface line whose DOFs are the fluid's wall u_r DOFs."""
 
+    @property
+    @abstractmethod
+    def ndofs(self) -> int:
+        """Unknowns of the fluid's system."""
+
+    @property
+    @abstractmethod
+    def interface_dofs(self) -> np.ndarray:
+        """The unknown of the fluid's system that is the wall's u_r at each line DOF."""
+
+    @property
+    @abstractmethod
+    def stats(self) -> SolverStats:
+        """Factorizations and solves of the fluid's own systems."""
+
+    @property
+    @abstractmethod
+    def timings(self) -> dict[str, float]:
+        """Seconds spent in ``assembly`` and ``ledger`` so far."""
+
     @abstractmethod
     def initial_state(self) -> Any:
         """The fluid at rest."""
 
     @abstractmethod
-    def step(self, state: Any, eta: np.ndarray | None = None, v_half: np.ndarray | None = None,
-             p_in: float = 0.0, p_out: float = 0.0, robin_mass: sp.spmatrix | None = None) -> Any:
-        """One A2 step on the domain of ``eta`` with the wall velocity ``v_half``.
+    def system(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
+               p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> Any:
+        """The linear system of one step on ``domain`` (history: the states at tⁿ, t^{n−1}, ...)."""
 
-        Returns an object with ``state`` (its ``v`` the new wall velocity) and
-        ``energy`` (the terms of the A2 identity).
+    @abstractmethod
+    def matrix(self, system: Any) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, np.ndarray]:
+        """(A, b, fixed DOFs, their values) of ``system``: A x̄ = b on the free DOFs."""
+
+    @abstractmethod
+    def solve(self, system: Any) -> Any:
+        """Solve ``system``; the result has ``state`` (the new state) and ``mean`` (the test-level x̄)."""
+
+    @abstractmethod
+    def advance(self, system: Any, mean: np.ndarray) -> Any:
+        """The solution of ``system`` from its test-level unknowns x̄ solved elsewhere."""
+
+    @abstractmethod
+    def identity(self, system: Any, solution: Any, eta_old: np.ndarray, eta_new: np.ndarray) -> dict[str, float]:
+        """The step's energy terms (see :meth:`multilayer_plugins.channel.step.FluidStep.identity`)."""
+
+    @abstractmethod
+    def reaction(self, system: Any, mean: np.ndarray) -> np.ndarray:
+        """The fluid's residual on the wall's u_r rows as a line vector: minus its force on the wall."""
+
+    def step(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float, p_in: float = 0.0,
+             p_out: float = 0.0, interface: Interface | None = None, eta_old: np.ndarray | None = None,
+             eta_new: np.ndarray | None = None) -> tuple[Any, dict[str, float]]:
+        """One step: system, solve and energy terms; returns (solution, terms).
+
+        ``eta_old``, ``eta_new`` are η at tⁿ and tⁿ⁺¹, on which the identity
+        measures the kinetic energy (default: the domain's η, a still domain).
         """
+        system = self.system(history, domain, scheme, dt, p_in, p_out, interface)
+        solution = self.solve(system)
+        eta_old = domain.eta if eta_old is None else eta_old
+        eta_new = domain.eta if eta_new is None else eta_new
+        return solution, self.identity(system, solution, eta_old, eta_new)
+
+    @abstractmethod
+    def wall_velocity(self, state: Any) -> np.ndarray:
+        """The wall's u_r of ``state`` as a line vector."""
 
     @abstractmethod
     def kinetic_energy(self, state: Any, eta: np.ndarray | None = None) -> float:
@@ -255,22 +347,42 @@ class Fluid(ABC):
 
 @attrs.frozen
 class StepReport:
-    """What a coupler yields after each time step.
+    """The energy terms of one step (SCHEME §4), by column name, as a coupler reports them.
 
-    ``ledger`` holds every energy-ledger term of the step (SCHEME §4) by
-    column name, including ``energy.total`` and ``energy.residual``.
+    ``stored`` is the energy at tⁿ⁺¹ as the scheme's identity measures it
+    (kinetic and elastic, per part), ``work`` what the loads put in,
+    ``dissipation`` what viscosity, the scheme and the explicit geometry
+    take out (a geometric remainder may be negative).  The runner closes
+    the ledger from them: Eⁿ⁺¹ − Eⁿ − work + dissipation = 0.
+    ``diagnostics`` are extra columns (e.g. each sub-step's own residual).
     """
 
-    step: int
-    t: float
-    ledger: Mapping[str, float] = attrs.field(factory=dict)
+    stored: Mapping[str, float] = attrs.field(factory=dict)
+    work: Mapping[str, float] = attrs.field(factory=dict)
+    dissipation: Mapping[str, float] = attrs.field(factory=dict)
+    diagnostics: Mapping[str, float] = attrs.field(factory=dict)
 
 
 class Coupler(ABC):
-    """A time-stepping scheme that drives a scene."""
+    """A time-stepping scheme: a pure stepper over a frozen setup.
+
+    ``evolve(setup, state0)`` yields ``(state, report)`` after every step:
+    the new :class:`~multilayer.state.State` (a value; nothing is mutated)
+    and the step's :class:`StepReport`.  The runner writes rows, probes
+    and snapshots from them and closes the energy ledger.
+    """
 
     #: the loads (keys of ``[loads]``) this coupler applies; any other must be left at 0
     loads: ClassVar[tuple[str, ...]] = ()
+    #: the time schemes (:data:`multilayer.timescheme.SCHEMES`) it offers; its ``scheme`` parameter
+    schemes: ClassVar[tuple[str, ...]] = ("backward-euler",)
+
+    def __init__(self, scheme: str = "backward-euler"):
+        from multilayer.timescheme import SCHEMES
+
+        if scheme not in self.schemes:
+            raise ValueError(f"scheme {scheme!r} is not offered; choose one of {', '.join(self.schemes)}")
+        self.scheme: TimeScheme = SCHEMES[scheme]
 
     def check_case(self, case: Case) -> list[str]:
         """Reasons this coupler cannot run ``case`` (empty when it can).
@@ -283,12 +395,18 @@ class Coupler(ABC):
                 for key in ("inlet", "outlet", "external", "interface")
                 if key not in self.loads and not is_zero(getattr(case.loads, key))]
 
-    def prepare(self, scene: Scene) -> None:
-        """Set up what the scheme needs before the first step (e.g. the fluid's wall mode).
+    def fluid_wall(self, case: Case) -> str:
+        """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""
+        return "coupled"
 
-        Called once, before the initial snapshot, so t = 0 is written for every part.
-        """
+    def initial_state(self, setup: Setup) -> State:
+        """The state at t = 0 (the case's initial wall, the fluid at rest)."""
+        return setup.initial_state()
 
     @abstractmethod
-    def evolve(self, scene: Scene) -> Iterator[StepReport]:
-        """Advance the scene step by step, yielding a report after each step."""
+    def energy(self, setup: Setup, state: State) -> dict[str, float]:
+        """The stored energy of ``state`` by part, as this scheme's identity measures it."""
+
+    @abstractmethod
+    def evolve(self, setup: Setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        """Advance from ``state`` step by step, yielding the new state and the step's report."""

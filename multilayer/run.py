@@ -1,4 +1,4 @@
-"""Running a case: build the scene, let the coupler advance it, write everything.
+"""Running a case: build the setup, let the coupler advance the state, close the ledger, write everything.
 
 The results folder is a contract other tools rely on:
 
@@ -27,7 +27,9 @@ from multilayer import __version__
 from multilayer.case import Case
 from multilayer.registry import Registry
 from multilayer.results import ResultsFolder
-from multilayer.scene import Scene
+from multilayer import ledger
+from multilayer.setup import Setup
+from multilayer.state import State
 
 
 class RunFailed(Exception):
@@ -43,67 +45,74 @@ class RunResult:
     max_relative_residual: float = 0.0
 
 
-def check_state(scene: Scene, t: float, row: dict[str, float]) -> None:
+def check_state(setup: Setup, state: State, row: dict[str, float]) -> None:
     """Stop on a non-finite value or a wall collapsing onto the axis (R + η ≤ 0)."""
+    t = state.t
     bad = [k for k, v in row.items() if not math.isfinite(v)]
     if bad:
         raise RunFailed(f"non-finite value at t = {t:.6g} s in {', '.join(sorted(bad)[:5])}")
-    if scene.wall_state is not None:
-        for name, vec in (("wall displacement", scene.wall_state.d), ("wall velocity", scene.wall_state.V)):
+    if state.wall is not None:
+        for name, vec in (("wall displacement", state.wall.d), ("wall velocity", state.wall.V)):
             if not np.all(np.isfinite(vec)):
                 raise RunFailed(f"non-finite {name} at t = {t:.6g} s")
-        eta = scene.eta(0)
-        gap = scene.case.geometry.radius + eta
+        gap = setup.case.geometry.radius + setup.eta(state, 0)
         if np.min(gap) <= 0.0:
             i = int(np.argmin(gap))
-            z = scene.wall.lines[0].z[i]
+            z = setup.wall.lines[0].z[i]
             raise RunFailed(f"wall collapse at t = {t:.6g} s, z = {z:.6g} cm: R + η = {gap[i]:.6g} cm ≤ 0")
 
 
-def _snapshot(scene: Scene, results: ResultsFolder, t: float, step: int) -> None:
-    if scene.wall is not None:
-        pts, cells, data = scene.wall_snapshot()
-        results.snapshot("wall", pts, cells, data, t, step)
-    if scene.fluid_state is not None:
-        pts, cells, data = scene.fluid_snapshot()
-        results.snapshot("fluid", pts, cells, data, t, step)
+def _snapshot(setup: Setup, state: State, results: ResultsFolder) -> None:
+    if setup.wall is not None:
+        pts, cells, data = setup.wall_snapshot(state)
+        results.snapshot("wall", pts, cells, data, state.t, state.n)
+    if setup.fluid is not None:
+        pts, cells, data = setup.fluid_snapshot(state)
+        results.snapshot("fluid", pts, cells, data, state.t, state.n)
 
 
 def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> RunResult:
     """Run ``case`` and write its results folder ``out``.
 
-    Returns the :class:`RunResult`; the same status is in ``summary.json``.
+    The coupler advances states; this loop closes the energy ledger of each
+    step from the terms the coupler reports (SCHEME §4), evaluates the
+    probes and writes rows and snapshots.  Returns the :class:`RunResult`;
+    the same status is in ``summary.json``.
     """
     wall_t0 = time.perf_counter()
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
     status, reason, steps, max_rel, crash = "ok", "", 0, 0.0, ""
-    scene: Scene | None = None
+    setup: Setup | None = None
     try:
         try:
-            scene = Scene.build(case, registry)
+            setup = Setup.build(case, registry)
+            state = setup.coupler.initial_state(setup)
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             raise RunFailed(f"setting up the scene failed: {exc}") from exc
-        scene.coupler.prepare(scene)
-        probes = scene.probe_rows(case.output.probes)
+        previous = sum(setup.coupler.energy(setup, state).values())
+        probes = setup.probe_rows(case.output.probes)
         every = case.output.every
         series = None
         t_out = time.perf_counter()
         if every:
-            _snapshot(scene, results, 0.0, 0)
-        scene.timings["output"] += time.perf_counter() - t_out
-        for report in scene.coupler.evolve(scene):
-            check_state(scene, report.t, dict(report.ledger))
+            _snapshot(setup, state, results)
+        setup.timings["output"] += time.perf_counter() - t_out
+        for state, report in setup.coupler.evolve(setup, state):
+            terms = ledger.close(report.stored, previous, report.work, report.dissipation)
+            previous = terms["energy.total"]
+            check_state(setup, state, {**terms, **report.diagnostics})
             t_out = time.perf_counter()
-            row = {"step": report.step, "t": report.t, **report.ledger, **scene.probe_values(probes)}
+            row = {"step": state.n, "t": state.t, **terms, **report.diagnostics,
+                   **setup.probe_values(probes, state)}
             if series is None:
                 series = results.series(list(row))
             series.append(row)
-            steps = report.step
-            max_rel = max(max_rel, float(report.ledger.get("energy.relative_residual", 0.0)))
-            if every and report.step % every == 0:
-                _snapshot(scene, results, report.t, report.step)
-            scene.timings["output"] += time.perf_counter() - t_out
+            steps = state.n
+            max_rel = max(max_rel, terms["energy.relative_residual"])
+            if every and state.n % every == 0:
+                _snapshot(setup, state, results)
+            setup.timings["output"] += time.perf_counter() - t_out
     except RunFailed as exc:
         status, reason = "failed", str(exc)
     except (FloatingPointError, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
@@ -120,12 +129,13 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
         "case": dict(case.resolved),
         "case_hash": case.digest,
         "plugins": _plugin_versions(case, registry),
-        "dofs": scene.dof_counts() if scene else {},
+        "dofs": setup.dof_counts() if setup else {},
         "steps": steps,
         "dt": case.time.dt,
+        "scheme": _scheme(setup),
         "wall_time_s": time.perf_counter() - wall_t0,
-        "timings": _timings(scene),
-        "factorizations": _factorizations(scene),
+        "timings": _timings(setup),
+        "factorizations": _factorizations(setup),
         "energy": {"max_relative_residual": max_rel},
     }
     results.write_summary(summary)
@@ -144,32 +154,33 @@ def _plugin_versions(case: Case, registry: Registry) -> dict[str, dict[str, str]
     return out
 
 
-def _fluid_step(scene: Scene | None):
-    return scene.fluid.discrete if scene is not None and scene.fluid_state is not None else None
+def _scheme(setup: Setup | None) -> dict[str, object]:
+    scheme = getattr(setup.coupler, "scheme", None) if setup is not None else None
+    return {"name": scheme.name, "order": scheme.order} if scheme is not None else {}
 
 
-def _factorizations(scene: Scene | None) -> dict[str, int]:
-    out = {"wall": scene.stats.factorizations if scene else 0}
-    if _fluid_step(scene) is not None:
-        out["fluid"] = _fluid_step(scene).stats.factorizations
+def _factorizations(setup: Setup | None) -> dict[str, int]:
+    """Factorizations per system: the coupler's own (``wall``, ``monolithic``, ...) and the fluid's."""
+    out = {"wall": 0}
+    if setup is None:
+        return out
+    out.update({name: st.factorizations for name, st in setup.solvers.items()})
+    if setup.fluid is not None:
+        out["fluid"] = setup.fluid.stats.factorizations
     return out
 
 
-def _timings(scene: Scene | None) -> dict[str, float]:
-    """Seconds per phase, wall and fluid together (every key present, 0 when the scene never started)."""
-    if scene is None:
-        return dict.fromkeys(("assembly", "factorization", "solves", "output", "ledger"), 0.0)
-    out = {
-        "assembly": scene.timings.get("assembly", 0.0),
-        "factorization": scene.stats.factorization_s,
-        "solves": scene.stats.solve_s,
-        "output": scene.timings.get("output", 0.0),
-        "ledger": 0.0,
-    }
-    fluid = _fluid_step(scene)
-    if fluid is not None:
-        out["assembly"] += fluid.assembly_s
-        out["factorization"] += fluid.stats.factorization_s
-        out["solves"] += fluid.stats.solve_s
-        out["ledger"] += fluid.ledger_s
+def _timings(setup: Setup | None) -> dict[str, float]:
+    """Seconds per phase, all systems together (every key present, 0 when the run never started)."""
+    out = dict.fromkeys(("assembly", "factorization", "solves", "output", "ledger"), 0.0)
+    if setup is None:
+        return out
+    stats = [*setup.solvers.values(), *([setup.fluid.stats] if setup.fluid is not None else [])]
+    out["assembly"] = setup.timings.get("assembly", 0.0)
+    out["output"] = setup.timings.get("output", 0.0)
+    out["factorization"] = sum(st.factorization_s for st in stats)
+    out["solves"] = sum(st.solve_s for st in stats)
+    if setup.fluid is not None:
+        out["assembly"] += setup.fluid.timings.get("assembly", 0.0)
+        out["ledger"] += setup.fluid.timings.get("ledger", 0.0)
     return out

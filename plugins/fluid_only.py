@@ -2,7 +2,8 @@
 
 No wall model: with ``loads.wall_motion`` unset the wall is rigid (u = 0 on
 it); with a formula η(t, z) the channel moves with it and the fluid sees
-u = ∂_t η e_r on the wall.  This scene tests the ALE machinery on its own.
+ū_r = (Σα_k η^{n+1−k})/Δt on the wall, the velocity the scheme integrates
+to the prescribed η.  This scene tests the ALE machinery on its own.
 """
 
 from __future__ import annotations
@@ -11,17 +12,18 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from multilayer import ledger
+from multilayer.coupling import fluid_groups, window_loads
 from multilayer.hookspecs import hookimpl
-from multilayer.interfaces import Coupler, StepReport
+from multilayer.interfaces import Coupler, Domain, StepReport
 from multilayer.records import CouplerPlugin
-from multilayer_plugins.channel.ledger import ledger_groups
-from multilayer_plugins.channel.model import wall_motion
+from multilayer.state import State
+from multilayer.timescheme import SCHEMES, scheme_param
 
 
 class FluidOnly(Coupler):
     name = "fluid-only"
     loads = ("inlet", "outlet")
+    schemes = tuple(SCHEMES)
 
     def check_case(self, case) -> list[str]:
         problems = super().check_case(case)
@@ -32,37 +34,45 @@ class FluidOnly(Coupler):
                             "or choose the coupler 'kinematic-splitting'")
         return problems
 
-    def prepare(self, scene) -> None:
-        motion = scene.case.loads.wall_motion
-        scene.setup_fluid("prescribed" if motion is not None else "rigid")
-        if motion is not None:
-            scene.fluid_eta = np.asarray(motion(t=0.0, z=scene.fluid.line.z), dtype=float)
+    def fluid_wall(self, case) -> str:
+        return "prescribed" if case.loads.wall_motion is not None else "rigid"
 
-    def evolve(self, scene) -> Iterator[StepReport]:
-        case, fluid, dt = scene.case, scene.fluid, scene.dt
-        motion = case.loads.wall_motion
-        line = fluid.line
-        eta_of = (lambda t, z: motion(t=t, z=z)) if motion is not None else None
-        previous = fluid.kinetic_energy(scene.fluid_state, scene.fluid_eta)
-        for n, t0, t1 in scene.windows():
-            if motion is not None:
-                eta_n, v_half = wall_motion(line, eta_of, t0, dt)
+    def initial_state(self, setup) -> State:
+        state = setup.initial_state()
+        if setup.case.loads.wall_motion is not None:
+            state = State(0, 0.0, fluid=state.fluid, eta=self._eta(setup, 0.0))
+        return state
+
+    @staticmethod
+    def _eta(setup, t: float) -> np.ndarray:
+        line = setup.fluid.line
+        return np.asarray(setup.case.loads.wall_motion(t=t, z=line.z), dtype=float) * np.ones(line.ndofs)
+
+    def energy(self, setup, state: State) -> dict[str, float]:
+        return {"kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+
+    def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        S, dt, fluid = self.scheme, setup.dt, setup.fluid
+        moving = setup.case.loads.wall_motion is not None
+        still = Domain.still(fluid.line.ndofs)
+        for n, t0, t1 in setup.windows(state.n):
+            loads = window_loads(setup, S, t0, t1)
+            history = state.history(S.levels - 1)
+            if moving:
+                etas = [self._eta(setup, t1), *[x.eta for x in history]]
+                domain = Domain(S.geometry(etas), S.difference(etas) / dt)
             else:
-                eta_n = v_half = None
-            res = fluid.step(scene.fluid_state, eta_n, v_half,
-                             case.loads.inlet.average(t0, t1), case.loads.outlet.average(t0, t1))
-            scene.fluid_state = res.state
-            if motion is not None:
-                scene.fluid_eta = eta_n + dt * v_half
-            stored, work, dissipation = ledger_groups(res.energy)
-            if motion is not None:
-                work["work.wall"] = res.energy["wall.work"]
-            row = ledger.close(stored, previous, work, dissipation)
-            previous = row["energy.total"]
-            yield StepReport(n + 1, t1, row)
+                etas, domain = [still.eta, still.eta], still
+            sol, f = fluid.step([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"],
+                                eta_old=etas[1], eta_new=etas[0])
+            state = state.then(S.levels - 1, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
+            stored, work, dissipation = fluid_groups(f)
+            dissipation["dissipation.numerical.fluid"] = f["dissipation.numerical.fluid"]
+            yield state, StepReport(stored, work, dissipation,
+                                    {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"]})
 
 
 @hookimpl
 def multilayer_couplers():
-    return [CouplerPlugin(name="fluid-only", factory=FluidOnly,
+    return [CouplerPlugin(name="fluid-only", factory=FluidOnly, params=(scheme_param(tuple(SCHEMES)),),
                           doc="The fluid alone: rigid wall, or a wall moved by loads.wall_motion.")]

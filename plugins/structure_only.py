@@ -1,23 +1,27 @@
-"""``structure-only``: the wall alone (no fluid), SCHEME §3 step A1 every step.
+"""``structure-only``: the wall alone (no fluid), every layer of the stack, every step.
 
 Loads: the external pressure P_e on the outer surface and a prescribed
-pressure on the lumen line; or free vibration from initial profiles.
+pressure on the lumen line; or free vibration from initial profiles.  Any
+scheme of :mod:`multilayer.timescheme`; the matrix is factorized once.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 
-from multilayer import ledger
+from multilayer.coupling import external_force, window_loads
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, StepReport
 from multilayer.records import CouplerPlugin
-from multilayer.structure import StructureStep
+from multilayer.state import State
+from multilayer.structure import StructureStep, wall_energy
+from multilayer.timescheme import SCHEMES, scheme_param
 
 
 class StructureOnly(Coupler):
     name = "structure-only"
     loads = ("external", "interface")
+    schemes = tuple(SCHEMES)
 
     def check_case(self, case) -> list[str]:
         problems = super().check_case(case)
@@ -28,24 +32,23 @@ class StructureOnly(Coupler):
             problems.append("structure-only needs at least one layer in [[layers]]")
         return problems
 
-    def evolve(self, scene) -> Iterator[StepReport]:
-        wall, loads, dt = scene.wall, scene.case.loads, scene.dt
-        step = StructureStep(scene.stack, dt, scene.stats, scene.case.solver)
-        unit_outer = wall.line_load(wall.outer_line)
+    def energy(self, setup, state: State) -> dict[str, float]:
+        return wall_energy(setup.stack, self.scheme, state)
+
+    def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        S, wall = self.scheme, setup.wall
+        step = StructureStep(setup.stack, S, setup.dt, setup.stats("wall"), setup.case.solver)
         unit_lumen = wall.line_load(0)
-        previous = sum(step.energy(scene.wall_state).values())
-        for n, t0, t1 in scene.windows():
-            forces = {
-                "external": -loads.external.average(t0, t1) * unit_outer,
-                "interface": loads.interface.average(t0, t1) * unit_lumen,
-            }
-            scene.wall_state, energy, work, dissipation = step.step(scene.wall_state, forces)
-            row = ledger.close(energy, previous, work, dissipation)
-            previous = row["energy.total"]
-            yield StepReport(n + 1, t1, row)
+        for n, t0, t1 in setup.windows(state.n):
+            loads = window_loads(setup, S, t0, t1)
+            forces = {"external": external_force(setup, loads["external"]),
+                      "interface": loads["interface"] * unit_lumen}
+            a = step.step(state, forces)
+            state = state.then(S.levels - 1, n=n + 1, t=t1, wall=a.wall)
+            yield state, StepReport(a.stored, a.work, a.dissipation)
 
 
 @hookimpl
 def multilayer_couplers():
-    return [CouplerPlugin(name="structure-only", factory=StructureOnly,
-                          doc="The wall alone: all layers, backward Euler, factorized once.")]
+    return [CouplerPlugin(name="structure-only", factory=StructureOnly, params=(scheme_param(tuple(SCHEMES)),),
+                          doc="The wall alone: all layers, any time scheme, factorized once.")]

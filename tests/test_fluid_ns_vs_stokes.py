@@ -11,21 +11,22 @@ import pytest
 
 from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
 from multilayer_plugins.channel.probes import l2_error
+from fluid_steps import fluid_step
 
 L, R, MU, RHO, T0 = 2.0, 0.5, 0.035, 1.0, 0.02
 
 
 def final_velocity(cls, a, steps=20):
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=8, nr=4, order=2, dt=T0 / steps, wall="prescribed")
+    fluid.setup(L, R, nz=8, nr=4, order=2, wall="prescribed")
     state, t, dt = fluid.initial_state(), 0.0, T0 / steps
 
     def law(t, z):
         return a * np.sin(np.pi * z / L) * np.sin(2 * np.pi * t / T0)
 
     for _ in range(steps):
-        eta, v_half = wall_motion(fluid.line, law, t, dt)
-        state, t = fluid.step(state, eta, v_half).state, t + dt
+        eta, _, v_half = wall_motion(fluid.line, law, t, dt)
+        state, t = fluid_step(fluid, state, dt, eta, v_half)[0], t + dt
     return fluid, state.u
 
 

@@ -7,6 +7,8 @@ from skfem import BilinearForm, asm
 from multilayer_plugins.channel import ChannelFluid, NavierStokes, Stokes
 from multilayer.interfaces import Fluid
 from multilayer.registry import Registry
+from fluid_steps import BE, fluid_step
+from multilayer.interfaces import Domain, Interface
 
 
 @pytest.mark.parametrize("name, cls", [("navier-stokes", NavierStokes), ("stokes", Stokes)])
@@ -32,7 +34,7 @@ def test_rejects_non_positive_parameters(kwargs):
 
 def setup(wall, order=2):
     fluid = NavierStokes(1.0, 0.035)
-    fluid.setup(1.0, 0.5, nz=2, nr=2, order=order, dt=1e-3, wall=wall)
+    fluid.setup(1.0, 0.5, nz=2, nr=2, order=order, wall=wall)
     return fluid
 
 
@@ -51,18 +53,20 @@ def test_wall_mode_errors():
     rigid = setup("rigid")
     state = rigid.initial_state()
     with pytest.raises(ValueError, match="rigid wall does not move"):
-        rigid.step(state, eta=np.full(rigid.line.ndofs, 0.01))
+        fluid_step(rigid, state, 1e-3, eta=np.full(rigid.line.ndofs, 0.01))
     prescribed = setup("prescribed")
     with pytest.raises(ValueError, match="vanish at z = 0"):
-        prescribed.step(state, np.zeros(5), np.ones(5))
-    with pytest.raises(ValueError, match="Robin mass"):
-        prescribed.step(state, robin_mass=np.eye(5))
+        fluid_step(prescribed, state, 1e-3, np.zeros(5), np.ones(5))
+    with pytest.raises(ValueError, match="only enter the coupled"):
+        fluid_step(prescribed, state, 1e-3, robin_mass=np.eye(5))
     with pytest.raises(ValueError, match="interface line"):
-        setup("coupled").step(state, eta=np.zeros(3))
+        fluid_step(setup("coupled"), state, 1e-3, eta=np.zeros(3))
     with pytest.raises(ValueError, match="5 × 5"):
-        setup("coupled").step(state, robin_mass=np.eye(3))
+        setup("coupled").step([state], Domain.still(5), BE, 1e-3, interface=Interface(np.eye(3), np.zeros(3)))
     with pytest.raises(ValueError, match="closes the channel"):
-        setup("coupled").step(state, eta=-np.ones(5))
+        fluid_step(setup("coupled"), state, 1e-3, eta=-np.ones(5))
+    with pytest.raises(ValueError, match="time step"):
+        fluid_step(setup("coupled"), state, 0.0)
     with pytest.raises(RuntimeError, match="setup"):
         Stokes(1.0, 1.0).initial_state()
     with pytest.raises(ValueError, match="order"):

@@ -17,6 +17,7 @@ import pytest
 
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
+from fluid_steps import fluid_step
 
 L, R, MU, RHO = 6.0, 0.5, 0.035, 1.0
 
@@ -28,10 +29,10 @@ def poiseuille(dp):
 def steady(cls, order, nz, nr, dp, steps=12):
     """March with Δt = 1000 s from rest: each step divides the distance to steady state by ~350."""
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, dt=1e3, wall="rigid")
+    fluid.setup(L, R, nz=nz, nr=nr, order=order, wall="rigid")
     state = fluid.initial_state()
     for _ in range(steps):
-        state = fluid.step(state, p_in=dp, p_out=0.0).state
+        state, _ = fluid_step(fluid, state, 1e3, p_in=dp, p_out=0.0)
     return fluid, state
 
 
@@ -79,11 +80,11 @@ def test_poiseuille_in_a_dilated_channel():
     """
     c, dp = 0.1, 10.0
     fluid = Stokes(RHO, MU)
-    fluid.setup(L, R, nz=4, nr=4, order=2, dt=1e3, wall="prescribed")
+    fluid.setup(L, R, nz=4, nr=4, order=2, wall="prescribed")
     eta, still = np.full(fluid.line.ndofs, c), np.zeros(fluid.line.ndofs)
     state = fluid.initial_state()
     for _ in range(12):
-        state = fluid.step(state, eta, still, p_in=dp, p_out=0.0).state
+        state, _ = fluid_step(fluid, state, 1e3, eta, still, p_in=dp, p_out=0.0)
     wide = (R + c) ** 2
     exact = lambda z, r: (dp * (wide - r**2) / (2 * MU * L), 0 * r)  # noqa: E731
     error = l2_error(fluid.channel, state.u, eta, exact) / l2_error(fluid.channel, 0 * state.u, eta, exact)

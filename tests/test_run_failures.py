@@ -95,7 +95,7 @@ SUMMARY_KEYS = {"status", "reason", "case", "case_hash", "plugins", "dofs", "ste
 def test_a_crash_inside_a_coupler_still_writes_the_summary(tmp_path, monkeypatch, capsys):
     import multilayer_plugins.structure_only as so
 
-    def crash(self, scene):
+    def crash(self, setup, state):
         yield from ()
         raise KeyError("a bug in a coupler")
 

@@ -5,7 +5,9 @@ import pytest
 
 from multilayer.linsolve import SolverStats
 from multilayer.signals import backward_euler_eigenvalue, prony_roots
-from multilayer.structure import StructureStep, WallState, zero_fixed
+from multilayer.state import State, WallState
+from multilayer.structure import StructureStep, zero_fixed
+from multilayer.timescheme import SCHEMES
 from multilayer.wall import Stack, WallSpace
 from multilayer_plugins.linear_elastic import LinearElasticBand
 
@@ -30,14 +32,14 @@ def measured_eigenvalue(kind, m, n, nz, nr, order, dt, steps=60):
     space = WallSpace.build([BAND], L, R, nz, order, [nr])
     stack = Stack.assemble(space)
     d0 = zero_fixed(stack, space.interpolate(lambda z, r, t: fz(z, r), lambda z, r, t: fr(z, r)))
-    state = WallState(d0, np.zeros_like(d0))
+    state = State(0, 0.0, WallState(d0, np.zeros_like(d0)))
     stats = SolverStats()
-    step = StructureStep(stack, dt, stats)
+    step = StructureStep(stack, SCHEMES["backward-euler"], dt, stats)
     Md0 = stack.mass @ d0
     amp = [1.0]
     for _ in range(steps):
-        state, *_ = step.step(state, {})
-        amp.append(float(Md0 @ state.d) / float(Md0 @ d0))
+        state = State(0, 0.0, step.step(state, {}).wall)
+        amp.append(float(Md0 @ state.wall.d) / float(Md0 @ d0))
     z = prony_roots(np.array(amp), 2)
     z = z[np.argmax(np.angle(z))]
     return z, backward_euler_eigenvalue(z, dt), omega, stats

@@ -20,7 +20,9 @@ from multilayer.interfaces import LayerMatrices
 from multilayer.linsolve import SolverStats
 from multilayer.registry import Registry
 from multilayer.spaces import make_line_space
-from multilayer.structure import StructureStep, WallState
+from multilayer.state import State, WallState
+from multilayer.structure import StructureStep
+from multilayer.timescheme import SCHEMES
 from multilayer.wall import Stack, WallSpace
 from multilayer_plugins.koiter_shell import KoiterShell, koiter_shell
 from multilayer_plugins.thin_shell import KoiterFamilyLayer
@@ -163,13 +165,13 @@ def amplification(layer, nz: int, dt: float, steps: int) -> tuple[complex, compl
     assert np.abs(Kx - k / m * Mx).max() < 1e-13 * scale
     lam_h = (-c + np.sqrt(complex(c * c - 4 * m * k))) / (2 * m)
 
-    step = StructureStep(stack, dt, SolverStats())
-    state = WallState(d=mode.copy(), V=np.zeros_like(mode))
+    step = StructureStep(stack, SCHEMES["backward-euler"], dt, SolverStats())
+    state = State(0, 0.0, WallState(d=mode.copy(), V=np.zeros_like(mode)))
     antinode = int(np.argmin(np.abs(z - L / 2)))
-    signal = [state.d[antinode]]
+    signal = [state.wall.d[antinode]]
     for _ in range(steps):
-        state = step.step(state, {})[0]
-        signal.append(state.d[antinode])
+        state = State(0, 0.0, step.step(state, {}).wall)
+        signal.append(state.wall.d[antinode])
     return prony(np.array(signal)), lam_h
 
 

@@ -1,7 +1,9 @@
-"""The fluid sub-problem of the kinematically coupled scheme (SCHEME §3, step A2).
+"""The channel fluid: Navier–Stokes (or Stokes) in the compliant channel, a plugin like any other.
 
-Navier–Stokes (or Stokes) in the compliant channel, assembled on the fixed
-reference channel with the coefficient fields of the explicit ALE map.
+Assembled on the fixed reference channel with the coefficient fields of the
+explicit ALE map (SCHEME §2–§3), for any time scheme of
+:mod:`multilayer.timescheme`; the assembly machinery it uses
+(:mod:`multilayer.assembly`) is the core's.
 
 ==================  ====================================================
 module              what it holds
@@ -9,17 +11,15 @@ module              what it holds
 ``channel``         reference mesh, P2/P1 or P1b/P1 spaces, DOF sets
 ``ale``             J, ∇^η, w at the quadrature points
 ``forms``           the A2 terms as scikit-fem forms
-``batched``         fast assembly of those forms through their kernels
-``pattern``         the fixed sparsity pattern
-``step``            one A2 step: :class:`FluidStep`
-``ledger``          the A2 energy identity
+``step``            one step: system, solve, energy identity (:class:`FluidStep`)
+``ledger``          quadratures of the energy identity
 ``probes``          point values, flow rate, snapshots
 ``model``           :class:`NavierStokes`, :class:`Stokes` (plugins' factories)
 ==================  ====================================================
 """
 
 from multilayer_plugins.channel.model import PARAMS, ChannelFluid, NavierStokes, Stokes, wall_motion
-from multilayer_plugins.channel.step import FluidState, FluidStep, StepResult
+from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 
 __all__ = [
     "PARAMS",
@@ -27,7 +27,8 @@ __all__ = [
     "FluidState",
     "FluidStep",
     "NavierStokes",
-    "StepResult",
+    "FluidSystem",
+    "Solution",
     "Stokes",
     "wall_motion",
 ]

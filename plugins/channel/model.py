@@ -13,14 +13,14 @@ from collections.abc import Callable
 from typing import ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 
 from multilayer_plugins.channel import probes
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ledger import fluid_kinetic
-from multilayer_plugins.channel.step import FluidState, FluidStep, StepResult
+from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 from multilayer.interfaces import Fluid, LineSpace
+from multilayer.linsolve import SolverStats
 from multilayer.records import Param
 
 #: The parameters of every channel fluid, for its plugin record.
@@ -42,15 +42,18 @@ class ChannelFluid(Fluid):
 
     Examples
     --------
+    >>> from multilayer.interfaces import Domain
+    >>> from multilayer.timescheme import SCHEMES
     >>> fluid = NavierStokes(density=1.0, viscosity=0.035)
-    >>> step = fluid.setup(length=1.0, radius=0.5, nz=2, nr=2, order=2, dt=1e-3, wall="rigid")
+    >>> step = fluid.setup(length=1.0, radius=0.5, nz=2, nr=2, order=2, wall="rigid")
     >>> state = fluid.initial_state()
-    >>> res = fluid.step(state, p_in=10.0, p_out=0.0)
-    >>> res.state.u.shape == (step.channel.nu,), abs(res.energy["a2.residual"]) < 1e-12
+    >>> still = Domain.still(fluid.line.ndofs)
+    >>> sol, terms = fluid.step([state], still, SCHEMES["backward-euler"], 1e-3, p_in=10.0)
+    >>> sol.state.u.shape == (step.channel.nu,), abs(terms["a2.residual"]) < 1e-12 * terms["a2.scale"]
     (True, True)
     """
 
-    #: whether the advection terms of A2 are assembled
+    #: whether the advection terms are assembled
     advection: ClassVar[bool] = True
 
     def __init__(self, density: float, viscosity: float):
@@ -72,20 +75,19 @@ class ChannelFluid(Fluid):
         nr: int,
         order: int = 2,
         grading: float = 1.0,
-        dt: float = 1e-4,
         wall: str = "coupled",
         solver: str = "superlu",
         line: LineSpace | None = None,
     ) -> FluidStep:
-        """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``, step ``dt`` (s).
+        """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``.
 
         ``wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
         :mod:`multilayer_plugins.channel.step`); ``line`` is the interface line's space
-        when the caller already has it.  Returns the step object, which is
+        when the caller already has it.  Returns the discretization, which is
         also kept on the fluid for the methods below.
         """
         channel = Channel.build(length, radius, nz, nr, order, grading, line)
-        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, dt, wall, solver)
+        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, wall, solver)
         return self._discrete
 
     @property
@@ -103,6 +105,22 @@ class ChannelFluid(Fluid):
         """The interface line r = R; the fluid's wall u_r DOFs are its DOFs."""
         return self.channel.line
 
+    @property
+    def ndofs(self) -> int:
+        return self.channel.ndofs
+
+    @property
+    def interface_dofs(self) -> np.ndarray:
+        return self.discrete.interface_dofs
+
+    @property
+    def stats(self) -> SolverStats:
+        return self.discrete.stats
+
+    @property
+    def timings(self) -> dict[str, float]:
+        return {"assembly": self.discrete.assembly_s, "ledger": self.discrete.ledger_s}
+
     def initial_state(
         self, velocity: Callable[[np.ndarray, np.ndarray], tuple] | None = None, eta: np.ndarray | None = None
     ) -> FluidState:
@@ -119,17 +137,28 @@ class ChannelFluid(Fluid):
             u = ch.interpolate(on_reference)
         return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u))
 
-    def step(
-        self,
-        state: FluidState,
-        eta: np.ndarray | None = None,
-        v_half: np.ndarray | None = None,
-        p_in: float = 0.0,
-        p_out: float = 0.0,
-        robin_mass: sp.spmatrix | None = None,
-    ) -> StepResult:
-        """One A2 step; see :meth:`multilayer_plugins.channel.step.FluidStep.step`."""
-        return self.discrete.step(state, eta, v_half, p_in, p_out, robin_mass)
+    def system(self, history, domain, scheme, dt, p_in=0.0, p_out=0.0, interface=None) -> FluidSystem:
+        """See :meth:`multilayer_plugins.channel.step.FluidStep.system`."""
+        return self.discrete.system(history, domain, scheme, dt, p_in, p_out, interface)
+
+    def matrix(self, system: FluidSystem):
+        """(A, b, fixed DOFs, fixed values) of ``system``, A in CSR with the interface terms."""
+        return self.discrete.pattern.matrix(system.data), system.rhs, system.fixed, system.fixed_values
+
+    def solve(self, system: FluidSystem) -> Solution:
+        return self.discrete.solve(system)
+
+    def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
+        return self.discrete.advance(system, mean)
+
+    def identity(self, system, solution, eta_old, eta_new) -> dict[str, float]:
+        return self.discrete.identity(system, solution, eta_old, eta_new)
+
+    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
+        return self.discrete.reaction(system, mean)
+
+    def wall_velocity(self, state: FluidState) -> np.ndarray:
+        return state.v
 
     def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
         """½ρ_f ∫ J|u|² on the domain of ``eta``."""
@@ -181,10 +210,11 @@ class Stokes(ChannelFluid):
 
 
 def wall_motion(line: LineSpace, eta: Callable[[float, np.ndarray], np.ndarray], t: float, dt: float):
-    """(ηⁿ, v^{n+½}) on the line for a prescribed law ``eta(t, z)`` (cm).
+    """(ηⁿ, η^{n+1}, c) on the line for a prescribed law ``eta(t, z)`` (cm): c = (η^{n+1} − ηⁿ)/Δt.
 
-    v^{n+½} = (η(t+Δt) − η(t))/Δt of the nodal interpolants, so that
-    ηⁿ + Δt v^{n+½} = η^{n+1} holds exactly (SCHEME §4).
+    With c the wall's u_r over the step, ηⁿ + Δt c = η^{n+1} holds exactly
+    (the discrete mass balance of the moving channel).
     """
-    now, then = eta(t, line.z), eta(t + dt, line.z)
-    return np.asarray(now, dtype=float), (np.asarray(then, dtype=float) - now) / dt
+    now = np.asarray(eta(t, line.z), dtype=float)
+    then = np.asarray(eta(t + dt, line.z), dtype=float)
+    return now, then, (then - now) / dt

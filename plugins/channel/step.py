@@ -1,46 +1,55 @@
-"""One fluid step, SCHEME §3 A2: the linear Oseen-type problem for (u, p, v).
+"""The fluid step on one domain: the linear Oseen-type system for (ū, p̄), its solve, its energy identity.
 
-On the reference channel, with the ALE fields of ηⁿ and the wall velocity
-v^{n+½} of the structure step, find (u, p) with u_r = 0 on the axis, inlet
-and outlet, u_z = 0 on the wall, and u_r = v on the wall, such that
+On the reference channel, with the ALE fields of the step's domain (η_m, and
+the domain velocity c that moves it) and a time scheme with coefficients
+α, β (:mod:`multilayer.timescheme`), find the test-level unknowns
+ū = Σβ_k u^{n+1−k} and p̄ with u_r = 0 on the axis, inlet and outlet, u_z = 0
+on the wall, such that
 
-    ρ_f/Δt mass_J(u − uⁿ, q) + ρ_f advection_skew(u, q) + ρ_f moving_domain(u, q)
-  + 2μ viscous(u, q) − ∫ J p ∇^η·q + ∫ J π ∇^η·u + (1/Δt) (v − v^{n+½})ᵀ M ψ
-  = P_in ∫_Γin J q_z − P_out ∫_Γout J q_z.
+    ρ_f/Δt mass_J(Σ α_k u^{n+1−k}, q) + ρ_f advection_skew(ū, q) + ρ_f moving_domain(ū, q)
+  + 2μ viscous(ū, q) − ∫ J p̄ ∇^η·q + ∫ J π ∇^η·ū + [R v̄ − r]·ψ
+  = P̄_in ∫_Γin J q_z − P̄_out ∫_Γout J q_z.
+
+The old levels go to the right-hand side, so the matrix is
+(α₀/β₀) ρ_f/Δt mass_J + the rest (a backward-Euler matrix of step Δt β₀/α₀).
+[R v̄ − r] is what a coupler puts on the wall's u_r rows (line numbering):
+the thin layer's inertia as a Robin term in the kinematically coupled scheme
+(SCHEME §3 A2), nothing in a monolithic solve, which adds the wall itself.
 
 Wall modes:
 
 ``coupled``
-    the wall's u_r DOFs are free: they are the line unknowns v, carrying
-    the thin layer's inertia through the Robin mass M = ρ₁h∫vψ;
+    the wall's u_r DOFs are unknowns (ū_r = v̄ on Γ);
 ``rigid``
-    u = 0 on the wall, ηⁿ = 0, v = 0;
+    u = 0 on the wall and the domain never moves;
 ``prescribed``
-    u_r = v^{n+½} on the wall (Dirichlet), with v^{n+½} = (η^{n+1} − ηⁿ)/Δt
-    the velocity of a wall moved by a given law.
+    ū_r = c on the wall (Dirichlet): the wall moves as given.
 
 The matrix is assembled into a sparsity pattern fixed at setup
-(:class:`multilayer.assembly.pattern.Pattern`).  In the rigid mode only the
-advection term changes between steps (the rest is assembled once), and a
-Stokes fluid on a rigid wall has a constant matrix: it is factorized once.
+(:class:`multilayer.assembly.pattern.Pattern`).  On a rigid wall only the
+advection term changes between steps, and a Stokes fluid on a rigid wall
+has a constant matrix: it is factorized once per Δt.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 
 import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer_plugins.channel import forms
-from multilayer_plugins.channel.ale import ALEFields
 from multilayer.assembly.batched import BatchedForm
-from multilayer_plugins.channel.channel import Channel
-from multilayer_plugins.channel.ledger import a2_terms
 from multilayer.assembly.pattern import Pattern
+from multilayer.interfaces import Domain, Interface
 from multilayer.linsolve import Factorized, SolverStats, factorize
 from multilayer.spaces import prolongation_dofs
+from multilayer.timescheme import TimeScheme, levels
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.ledger import end_fluxes, fluid_kinetic
 
 WALL_MODES = ("coupled", "rigid", "prescribed")
 
@@ -51,6 +60,8 @@ class FluidState:
 
     ``v`` is the wall's u_r as a vector of the interface line's space:
     the kinematic condition u = v e_r on Γ, in the thin layer's numbering.
+    ``p`` is the pressure of the step that made the state (at the scheme's
+    test level: the midpoint for Crank–Nicolson).
     """
 
     u: np.ndarray
@@ -59,16 +70,40 @@ class FluidState:
 
 
 @attrs.frozen(eq=False)
-class StepResult:
-    """The new state, the terms of the A2 energy identity, and the seconds per phase."""
+class FluidSystem:
+    """One step's linear system: matrix (CSR data in the fixed pattern), right-hand side, what it was built from.
 
+    ``matrix`` and ``rhs`` hold the fluid's own equations plus the coupler's
+    interface terms; ``own`` is the data without the interface terms (for the
+    wall reaction).  ``fixed`` are the Dirichlet DOFs with values ``fixed_values``.
+    """
+
+    data: np.ndarray
+    own: np.ndarray
+    rhs: np.ndarray
+    own_rhs: np.ndarray
+    fixed: np.ndarray
+    fixed_values: np.ndarray
+    fields: ALEFields
+    domain: Domain
+    scheme: TimeScheme
+    dt: float
+    history: tuple[FluidState, ...]
+    p_in: float
+    p_out: float
+    interface: Interface | None
+
+
+@attrs.frozen(eq=False)
+class Solution:
+    """The solved test-level unknowns x̄ = (ū, p̄) and the new state."""
+
+    mean: np.ndarray
     state: FluidState
-    energy: dict[str, float]
-    timings: dict[str, float]
 
 
 class FluidStep:
-    """The A2 step of one fluid on one channel, for a fixed Δt and wall mode.
+    """The discretization of one fluid on one channel for one wall mode.
 
     Parameters
     ----------
@@ -78,33 +113,20 @@ class FluidStep:
         ρ_f (g/cm³) and μ (poise).
     advection : bool
         True for Navier–Stokes, False for Stokes (the moving-domain term stays).
-    dt : float
-        Δt (s).
     wall : str
         ``"coupled"``, ``"rigid"`` or ``"prescribed"``.
     solver : str
         A backend of :mod:`multilayer.linsolve`.
     """
 
-    def __init__(
-        self,
-        channel: Channel,
-        density: float,
-        viscosity: float,
-        advection: bool,
-        dt: float,
-        wall: str = "coupled",
-        solver: str = "superlu",
-    ):
+    def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
+                 wall: str = "coupled", solver: str = "superlu"):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
-        if not dt > 0.0:
-            raise ValueError(f"time step must be > 0 s, got {dt!r}")
         self.channel = channel
         self.density = density
         self.viscosity = viscosity
         self.advection = advection
-        self.dt = dt
         self.wall = wall
         self.solver = solver
         self.stats = SolverStats()
@@ -120,7 +142,8 @@ class FluidStep:
         self._slots_uu = self.pattern.slots(*uu)
         self._slots_pu = self.pattern.slots(*pu)
         self._slots_up = self.pattern.slots(*pu[::-1])
-        self._wall_dof = prolongation_dofs(channel.prolongation)  # velocity DOF of each line DOF
+        #: the velocity DOF of each line DOF: where the wall's u_r sits
+        self.interface_dofs = prolongation_dofs(channel.prolongation)
 
         fixed = [channel.normal_r, channel.wall_z]
         if wall != "coupled":
@@ -133,159 +156,196 @@ class FluidStep:
         self._load_in = forms.dynamic_pressure.assemble(channel.inlet, J=1.0)
         self._load_out = forms.dynamic_pressure.assemble(channel.outlet, J=1.0)
         self._rigid = ALEFields.rigid(channel)
-        self._constant: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._data: np.ndarray | None = None
-        self._factorized: Factorized | None = None
-        self._robin_cache: tuple | None = None
-
-    # -- assembly -------------------------------------------------------------
-
-    def _kernels(self, fields: ALEFields, u_old: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Kernels of the velocity block (all terms summed), of mass_J, and of the divergence."""
-        if self._constant is not None:
-            K_static, K_mass, K_div = self._constant
-        else:
-            kw = fields.forms_kwargs()
-            K_mass = self._uu.kernel(forms.mass_J, **kw)
-            K_static = (self.density / self.dt) * K_mass + (2.0 * self.viscosity) * self._uu.kernel(forms.viscous, **kw)
-            K_div = self._pu.kernel(forms.pressure_divergence, **kw)
-            if self.wall == "rigid":
-                self._constant = (K_static, K_mass, K_div)
-        K = K_static
-        if np.any(fields.dJdt):
-            K = K + self.density * self._uu.kernel(forms.moving_domain, dJdt=fields.dJdt)
-        if self.advection:
-            a = np.array(self.channel.velocity.interpolate(u_old))
-            a[1] -= fields.wr
-            K = K + self.density * self._uu.kernel(forms.advection_skew, a=a, **fields.forms_kwargs())
-        return K, K_mass, K_div
-
-    def _robin(self, robin_mass: sp.spmatrix | None) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(slots, values) of (1/Δt) P M Pᵀ, the thin layer's inertia on the wall u_r DOFs.
-
-        A coupler hands the same matrix every step: its slots are looked up once.
-        """
-        if robin_mass is None:
-            return []
-        if self._robin_cache is None or self._robin_cache[0] is not robin_mass:
-            M = sp.coo_matrix(robin_mass)
-            rows, cols = self._wall_dof[M.row], self._wall_dof[M.col]
-            self._robin_cache = (robin_mass, self.pattern.slots(rows, cols), M.data / self.dt)
-        return [self._robin_cache[1:]]
-
-    def assemble(
-        self,
-        fields: ALEFields,
-        u_old: np.ndarray,
-        v_half: np.ndarray,
-        p_in: float,
-        p_out: float,
-        robin_mass: sp.spmatrix | None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The CSR data of the full A2 matrix (in :attr:`pattern`) and its right-hand side."""
-        ch = self.channel
-        if self.constant_matrix and self._data is not None:
-            data = self._data
-            K_mass = self._constant[1]
-        else:
-            K, K_mass, K_div = self._kernels(fields, u_old)
-            div = self._pu.matrix_data(K_div)
-            data = self.pattern.fill(
-                [(self._slots_uu, self._uu.matrix_data(K)), (self._slots_pu, div), (self._slots_up, -div)]
-                + self._robin(robin_mass)
-            )
-            if self.constant_matrix:
-                self._data = data
-        b = np.zeros(ch.ndofs)
-        b[: ch.nu] = (self.density / self.dt) * self._uu.apply(K_mass, u_old)
-        b[: ch.nu] += p_in * fields.J_in * self._load_in + p_out * fields.J_out * self._load_out
-        if robin_mass is not None:
-            b[: ch.nu] += ch.prolongation @ (robin_mass @ v_half) / self.dt
-        return data, b
-
-    # -- the step -------------------------------------------------------------
-
-    def _wall_data(
-        self, eta: np.ndarray | None, v_half: np.ndarray | None, robin_mass: sp.spmatrix | None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        nline = self.channel.line.ndofs
-        eta = np.zeros(nline) if eta is None else np.asarray(eta, dtype=float)
-        v_half = np.zeros(nline) if v_half is None else np.asarray(v_half, dtype=float)
-        if eta.shape != (nline,) or v_half.shape != (nline,):
-            raise ValueError(f"η and v must be vectors of the interface line ({nline} DOFs)")
-        if self.wall == "rigid" and (np.any(eta) or np.any(v_half)):
-            raise ValueError("a rigid wall does not move: pass η = v = 0 (or None)")
-        if self.wall != "coupled" and robin_mass is not None:
-            raise ValueError(f"a Robin mass only enters the coupled wall mode, not {self.wall!r}")
-        if robin_mass is not None and robin_mass.shape != (nline, nline):
-            raise ValueError(f"the Robin mass must be a {nline} × {nline} matrix on the interface line")
-        if self.wall == "prescribed":
-            ends = list(self.channel.ends)
-            scale = max(np.max(np.abs(v_half)), 1e-300)
-            if np.max(np.abs(v_half[ends])) > 1e-12 * scale:
-                raise ValueError("a prescribed wall motion must vanish at z = 0 and z = L (u_r = 0 there)")
-        return eta, v_half
-
-    def step(
-        self,
-        state: FluidState,
-        eta: np.ndarray | None = None,
-        v_half: np.ndarray | None = None,
-        p_in: float = 0.0,
-        p_out: float = 0.0,
-        robin_mass: sp.spmatrix | None = None,
-    ) -> StepResult:
-        """Advance (u, p, v) over one Δt on the domain of ``eta`` (= ηⁿ).
-
-        ``v_half`` is v^{n+½} (cm/s): the domain velocity, and in the
-        prescribed mode the wall's u_r.  ``p_in``/``p_out`` are the time
-        averages of the dynamic pressures over the step (dyn/cm²).
-        ``robin_mass`` is M = ρ₁h∫vψ on the line (coupled mode only).
-        """
-        ch = self.channel
-        eta, v_half = self._wall_data(eta, v_half, robin_mass)
-        t0 = time.perf_counter()
-        fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, eta, v_half)
-        data, b = self.assemble(fields, state.u, v_half, p_in, p_out, robin_mass)
-
-        x = np.zeros(ch.ndofs)
-        if self.wall == "prescribed":
-            x[: ch.nu] = ch.prolongation @ v_half
-            x[ch.normal_r] = 0.0
-        fixed_values = x[self.fixed]
-        rhs = b[self.free] - self._block_fd.matrix(data) @ fixed_values
-        assembly_s = time.perf_counter() - t0
-        self.assembly_s += assembly_s
-
-        before = (self.stats.factorization_s, self.stats.solve_s)
-        lu = self._factorized
-        if lu is None or not self.constant_matrix:
-            lu = factorize(self._block_ff.matrix(data), self.stats, self.solver)
-            self._factorized = lu if self.constant_matrix else None
-        x[self.free] = lu.solve(rhs)
-
-        t1 = time.perf_counter()
-        u, p = x[: ch.nu], x[ch.nu :]
-        v = ch.wall_trace(u)
-        wall_work = 0.0  # the reaction's power: nonzero only where u_r is prescribed
-        if self.wall == "prescribed":
-            A = self.pattern.matrix(data)
-            wall_work = self.dt * float(fixed_values @ (A @ x - b)[self.fixed])
-        energy = a2_terms(
-            ch, self.density, self.viscosity, self.dt, fields, state.u, u, v_half, v,
-            p_in, p_out, robin_mass, wall_work,
-        )
-        ledger_s = time.perf_counter() - t1
-        self.ledger_s += ledger_s
-        timings = {
-            "assembly": assembly_s,
-            "factorization": self.stats.factorization_s - before[0],
-            "solve": self.stats.solve_s - before[1],
-            "ledger": ledger_s,
-        }
-        return StepResult(FluidState(u.copy(), p.copy(), v), energy, timings)
+        self._static: dict[float, tuple] = {}  # rigid wall: kernels that depend on Δt/inertia only
+        self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
+        self._interface_slots: tuple | None = None
 
     @property
     def constant_matrix(self) -> bool:
-        """True when the A2 matrix never changes: Stokes on a rigid wall, fixed Δt."""
+        """True when the matrix never changes for a given Δt: Stokes on a rigid wall."""
         return self.wall == "rigid" and not self.advection
+
+    # -- assembly -------------------------------------------------------------
+    def _kernels(self, fields: ALEFields, mass_coefficient: float, a: np.ndarray | None):
+        """Kernels of the velocity block (all terms summed), of mass_J, and of the divergence."""
+        cached = self._static.get(mass_coefficient) if self.wall == "rigid" else None
+        if cached is not None:
+            K_static, K_mass, K_div = cached
+        else:
+            kw = fields.forms_kwargs()
+            K_mass = self._uu.kernel(forms.mass_J, **kw)
+            K_static = mass_coefficient * K_mass + (2.0 * self.viscosity) * self._uu.kernel(forms.viscous, **kw)
+            K_div = self._pu.kernel(forms.pressure_divergence, **kw)
+            if self.wall == "rigid":
+                self._static[mass_coefficient] = (K_static, K_mass, K_div)
+        K = K_static
+        if np.any(fields.dJdt):
+            K = K + self.density * self._uu.kernel(forms.moving_domain, dJdt=fields.dJdt)
+        if a is not None:
+            K = K + self.density * self._uu.kernel(forms.advection_skew, a=a, **fields.forms_kwargs())
+        return K, K_mass, K_div
+
+    def _interface_terms(self, interface: Interface | None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(slots, values) of the coupler's matrix R on the wall u_r DOFs; slots looked up once per R."""
+        if interface is None:
+            return []
+        if self._interface_slots is None or self._interface_slots[0] is not interface.matrix:
+            R = sp.coo_matrix(interface.matrix)
+            rows, cols = self.interface_dofs[R.row], self.interface_dofs[R.col]
+            self._interface_slots = (interface.matrix, self.pattern.slots(rows, cols), R.data)
+        return [self._interface_slots[1:]]
+
+    def _check(self, domain: Domain, interface: Interface | None, history: Sequence[FluidState]) -> None:
+        nline = self.channel.line.ndofs
+        if domain.eta.shape != (nline,) or domain.velocity.shape != (nline,):
+            raise ValueError(f"η and the domain velocity must be vectors of the interface line ({nline} DOFs)")
+        if self.wall == "rigid" and (np.any(domain.eta) or np.any(domain.velocity)):
+            raise ValueError("a rigid wall does not move: pass η = v = 0")
+        if self.wall != "coupled" and interface is not None:
+            raise ValueError(f"interface terms only enter the coupled wall mode, not {self.wall!r}")
+        if interface is not None and (interface.matrix.shape != (nline, nline) or interface.rhs.shape != (nline,)):
+            raise ValueError(f"the interface terms must be a {nline} × {nline} matrix and a vector on the line")
+        if self.wall == "prescribed":
+            ends = list(self.channel.ends)
+            c = domain.velocity
+            if np.max(np.abs(c[ends])) > 1e-12 * max(np.max(np.abs(c)), 1e-300):
+                raise ValueError("a prescribed wall motion must vanish at z = 0 and z = L (u_r = 0 there)")
+        if not history:
+            raise ValueError("the fluid step needs the state at tⁿ")
+
+    def system(self, history: Sequence[FluidState], domain: Domain, scheme: TimeScheme, dt: float,
+               p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> FluidSystem:
+        """Assemble the step's system on ``domain`` (see the module docstring).
+
+        ``history`` holds uⁿ, u^{n−1}, ... (newest first; padded with the
+        oldest when a multistep scheme wants more); ``p_in``/``p_out`` are the
+        loads averaged over the scheme's window (dyn/cm²).
+        """
+        if not dt > 0.0:
+            raise ValueError(f"time step must be > 0 s, got {dt!r}")
+        self._check(domain, interface, history)
+        t0 = time.perf_counter()
+        ch = self.channel
+        hist = tuple(levels(history[0], history[1:], scheme.levels - 1))
+        fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, domain.eta, domain.velocity)
+        mass_coefficient = scheme.inertia * self.density / dt
+        key = (mass_coefficient,)
+        constant = self._constant.get(key) if self.constant_matrix else None
+        if constant is not None:
+            own = constant[0]
+            K_mass = self._static[mass_coefficient][1]
+        else:
+            a = None
+            if self.advection:
+                a = np.array(ch.velocity.interpolate(scheme.extrapolate([s.u for s in hist])))
+                a[1] -= fields.wr
+            K, K_mass, K_div = self._kernels(fields, mass_coefficient, a)
+            div = self._pu.matrix_data(K_div)
+            own = self.pattern.fill([(self._slots_uu, self._uu.matrix_data(K)), (self._slots_pu, div),
+                                     (self._slots_up, -div)])
+        data = self.pattern.fill([(np.arange(self.pattern.nnz), own), *self._interface_terms(interface)]) \
+            if interface is not None else own
+        own_rhs = np.zeros(ch.ndofs)
+        h = scheme.history([s.u for s in hist])
+        own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply(K_mass, h)
+        own_rhs[: ch.nu] += p_in * fields.J_in * self._load_in + p_out * fields.J_out * self._load_out
+        rhs = own_rhs
+        if interface is not None:
+            rhs = own_rhs.copy()
+            rhs[: ch.nu] += ch.prolongation @ interface.rhs
+        fixed_values = np.zeros(ch.ndofs)
+        if self.wall == "prescribed":
+            fixed_values[: ch.nu] = ch.prolongation @ domain.velocity
+            fixed_values[ch.normal_r] = 0.0
+        self.assembly_s += time.perf_counter() - t0
+        return FluidSystem(data, own, rhs, own_rhs, self.fixed, fixed_values[self.fixed], fields, domain, scheme,
+                           dt, hist, p_in, p_out, interface)
+
+    # -- solving --------------------------------------------------------------
+    def solve(self, system: FluidSystem) -> Solution:
+        """Eliminate the Dirichlet DOFs, factorize (once per Δt when the matrix is constant) and solve."""
+        t0 = time.perf_counter()
+        rhs = system.rhs[self.free] - self._block_fd.matrix(system.data) @ system.fixed_values
+        self.assembly_s += time.perf_counter() - t0
+        key = (system.scheme.inertia * self.density / system.dt,)
+        lu = self._constant[key][1] if self.constant_matrix and key in self._constant else None
+        if lu is None:
+            lu = factorize(self._block_ff.matrix(system.data), self.stats, self.solver)
+            if self.constant_matrix:
+                self._constant[key] = (system.own, lu)
+        x = np.zeros(self.channel.ndofs)
+        x[self.fixed] = system.fixed_values
+        x[self.free] = lu.solve(rhs)
+        return self.advance(system, x)
+
+    def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
+        """The new state from the solved x̄ = (ū, p̄): u^{n+1} from the scheme, v its wall trace."""
+        nu = self.channel.nu
+        u = system.scheme.new_level(mean[:nu], [s.u for s in system.history])
+        return Solution(mean, FluidState(u, mean[nu:].copy(), self.channel.wall_trace(u)))
+
+    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
+        """The fluid's own residual A x̄ − b on the wall's u_r rows, as a line vector.
+
+        It is minus the force the fluid exerts on the wall over the step,
+        tested with each line basis function (dyn/cm per unit depth).
+        """
+        residual = self.pattern.matrix(system.own) @ mean - system.own_rhs
+        return self.channel.prolongation.T @ residual[: self.channel.nu]
+
+    # -- the energy identity ----------------------------------------------------
+    def identity(self, system: FluidSystem, solution: Solution, eta_old: np.ndarray,
+                 eta_new: np.ndarray) -> dict[str, float]:
+        """Every term of the step's energy identity, each computed by quadrature from the fields.
+
+        Testing the step with x̄ (q_J(x) = ½ρ_f∫J|x|², E the scheme's stored energy):
+
+            E(J^{n+1}) − E(Jⁿ) + numerical + viscous − G + interface = work,
+            G = stored(q_{J^{n+1}−J_m}) − stored_old(q_{Jⁿ−J_m}) − Δt q_{∂_tJ}(ū)
+
+        G is the geometric remainder of the explicit domain (J_m the step's
+        geometry, ∂_t J = c/R its velocity); it vanishes when J_m = Jⁿ and
+        ∂_t J = (J^{n+1} − Jⁿ)/Δt, the kinematically coupled scheme's choice.
+        ``interface`` = Δt v̄·(R v̄ − r) is the power handed to the coupler's
+        interface terms; ``wall.work`` the power of a prescribed wall.
+        """
+        t0 = time.perf_counter()
+        ch, S, dt, fields = self.channel, system.scheme, system.dt, system.fields
+        us = [solution.state.u, *[s.u for s in system.history]]
+        ubar = solution.mean[: ch.nu]
+        R = ch.radius
+        J_old = 1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R
+        J_new = 1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R
+
+        def q(J):
+            return lambda x: fluid_kinetic(ch, self.density, J, x)
+
+        stored_new = S.stored(q(J_new), us)
+        stored_old = S.stored(q(J_old), us[1:])
+        geometric = (S.stored(q(J_new - fields.J), us) - S.stored(q(J_old - fields.J), us[1:])
+                     - dt * fluid_kinetic(ch, self.density, fields.dJdt, ubar))
+        strain = forms.strain_squared.assemble(ch.velocity, u=ch.velocity.interpolate(ubar), **fields.forms_kwargs())
+        q_in, q_out = end_fluxes(ch, fields, ubar)
+        terms = {
+            "kinetic.fluid": stored_new,
+            "kinetic.fluid_before": stored_old,
+            "dissipation.viscous.fluid": 2.0 * self.viscosity * dt * float(strain),
+            "dissipation.numerical.fluid": S.numerical(q(fields.J), us),
+            "dissipation.geometric.fluid": -geometric,
+            "work.inlet": dt * system.p_in * q_in,
+            "work.outlet": -dt * system.p_out * q_out,
+        }
+        if self.wall == "prescribed":
+            A = self.pattern.matrix(system.data)
+            terms["work.wall"] = dt * float(system.fixed_values @ (A @ solution.mean - system.rhs)[self.fixed])
+        interface = 0.0
+        if system.interface is not None:
+            vbar = ch.wall_trace(ubar)
+            interface = dt * float(vbar @ (system.interface.matrix @ vbar - system.interface.rhs))
+        after = stored_new + terms["dissipation.numerical.fluid"] + terms["dissipation.viscous.fluid"] + interface
+        before = stored_old + terms["work.inlet"] + terms["work.outlet"] + terms.get("work.wall", 0.0) + geometric
+        terms["interface.power"] = interface
+        terms["a2.residual"] = after - before
+        terms["a2.scale"] = max(abs(after), abs(before), 1e-300)
+        self.ledger_s += time.perf_counter() - t0
+        return terms

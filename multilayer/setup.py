@@ -1,9 +1,11 @@
-"""A scene: the case's models built and placed, ready for a coupler to drive.
+"""The setup of a run: the case's models built and discretized, frozen for the run.
 
-The scene owns what every coupler shares: the layer objects, the wall's
-spaces and assembled stack, the fluid (if any), the current state, the
-solver statistics and the phase timings.  It also evaluates probes and
-writes field snapshots, so couplers only advance the state.
+The setup holds what every step shares and nothing that changes from step
+to step: the layer objects, the wall's spaces and assembled stack, the
+fluid and its discretization, the coupler.  It also reads a
+:class:`~multilayer.state.State`: probes and field snapshots, so couplers
+only advance states.  (Solver statistics and phase timings accumulate on
+it; they are counters, not state.)
 """
 
 from __future__ import annotations
@@ -18,15 +20,17 @@ from multilayer.case import Case, Probe
 from multilayer.interfaces import Coupler, Fluid, Layer
 from multilayer.linsolve import SolverStats
 from multilayer.registry import Registry
-from multilayer.structure import WallState, zero_fixed
+from multilayer.state import State, WallState
+from multilayer.structure import zero_fixed
 from multilayer.wall import LUMEN, Stack, WallSpace
+
 
 def build_model(registry: Registry, kind: str, spec) -> Any:
     return registry.get(kind, spec.model).record.factory(**dict(spec.params))
 
 
-@attrs.define(eq=False)
-class Scene:
+@attrs.frozen(eq=False)
+class Setup:
     case: Case
     registry: Registry
     layers: list[Layer]
@@ -34,41 +38,51 @@ class Scene:
     fluid: Fluid | None = None
     wall: WallSpace | None = None
     stack: Stack | None = None
-    wall_state: WallState | None = None
-    fluid_state: Any = None
-    fluid_eta: np.ndarray | None = None  #: η of the fluid's current domain, on the fluid's line
-    stats: SolverStats = attrs.field(factory=SolverStats)
+    #: factorizations and solves of the systems the coupler builds, by name (``wall``, ``monolithic``, ...)
+    solvers: dict[str, SolverStats] = attrs.field(factory=dict)
     timings: dict[str, float] = attrs.field(factory=lambda: {"assembly": 0.0, "output": 0.0})
 
     @classmethod
-    def build(cls, case: Case, registry: Registry) -> Scene:
+    def build(cls, case: Case, registry: Registry) -> Setup:
+        """Build the models, the wall and (in the coupler's wall mode) the fluid's discretization."""
         t0 = time.perf_counter()
         layers = [build_model(registry, "layer", spec) for spec in case.layers]
         coupler = build_model(registry, "coupler", case.coupler)
         fluid = build_model(registry, "fluid", case.fluid) if case.fluid is not None else None
-        scene = cls(case=case, registry=registry, layers=layers, coupler=coupler, fluid=fluid)
+        g, m = case.geometry, case.mesh
+        wall = stack = None
         if layers:
-            g, m = case.geometry, case.mesh
-            scene.wall = WallSpace.build(layers, g.length, g.radius, m.nz, m.order,
-                                         [spec.cells for spec in case.layers])
-            scene.stack = Stack.assemble(scene.wall)
-            init = case.initial
-            d0 = scene.wall.interpolate(init.displacement_z, init.displacement_r)
-            v0 = scene.wall.interpolate(init.velocity_z, init.velocity_r)
-            scene.wall_state = WallState(zero_fixed(scene.stack, d0), zero_fixed(scene.stack, v0))
-        scene.timings["assembly"] += time.perf_counter() - t0
-        return scene
+            wall = WallSpace.build(layers, g.length, g.radius, m.nz, m.order, [spec.cells for spec in case.layers])
+            stack = Stack.assemble(wall)
+        if fluid is not None:
+            line = wall.lines[LUMEN] if wall is not None else None
+            fluid.setup(g.length, g.radius, m.nz, m.nr, m.order, m.grading, coupler.fluid_wall(case),
+                        case.solver, line=line)
+        setup = cls(case=case, registry=registry, layers=layers, coupler=coupler, fluid=fluid, wall=wall,
+                    stack=stack)
+        setup.timings["assembly"] += time.perf_counter() - t0
+        return setup
 
-    def setup_fluid(self, wall_mode: str) -> None:
-        """Discretize the fluid for ``wall_mode`` (``coupled``, ``rigid``, ``prescribed``) and start it at rest."""
-        t0 = time.perf_counter()
-        g, m = self.case.geometry, self.case.mesh
-        line = self.wall.lines[LUMEN] if self.wall is not None else None
-        self.fluid.setup(g.length, g.radius, m.nz, m.nr, m.order, m.grading, self.dt, wall_mode,
-                         self.case.solver, line=line)
-        self.fluid_state = self.fluid.initial_state()
-        self.fluid_eta = np.zeros(self.fluid.line.ndofs)
-        self.timings["assembly"] += time.perf_counter() - t0
+    def initial_state(self) -> State:
+        """t = 0: the case's initial wall (essential DOFs zeroed), the fluid at rest on the wall's domain."""
+        wall = v = eta = fluid = None
+        if self.wall is not None:
+            init = self.case.initial
+            d0 = self.wall.interpolate(init.displacement_z, init.displacement_r)
+            v0 = self.wall.interpolate(init.velocity_z, init.velocity_r)
+            wall = WallState(zero_fixed(self.stack, d0), zero_fixed(self.stack, v0))
+        if self.fluid is not None:
+            fluid = self.fluid.initial_state()
+            if wall is not None:
+                P = self.wall.prolongations[LUMEN]
+                eta, v = P.T @ wall.d, P.T @ wall.V
+            else:
+                eta = np.zeros(self.fluid.line.ndofs)
+        return State(0, 0.0, wall, fluid, v, eta)
+
+    def stats(self, name: str) -> SolverStats:
+        """The counters of the coupler's system ``name`` (created on first use)."""
+        return self.solvers.setdefault(name, SolverStats())
 
     @property
     def dt(self) -> float:
@@ -78,30 +92,30 @@ class Scene:
     def steps(self) -> int:
         return self.case.time.steps
 
-    def windows(self):
-        """(n, tⁿ, tⁿ⁺¹) for every step of the run."""
+    def windows(self, start: int = 0):
+        """(n, tⁿ, tⁿ⁺¹) for every step of the run from step ``start``."""
         dt = self.dt
-        for n in range(self.steps):
+        for n in range(start, self.steps):
             yield n, n * dt, (n + 1) * dt
 
     # -- wall quantities ----------------------------------------------------
-    def eta(self, line: int = LUMEN) -> np.ndarray:
+    def eta(self, state: State, line: int = LUMEN) -> np.ndarray:
         """η on ``line`` in the line's own numbering."""
-        return self.wall.prolongations[line].T @ self.wall_state.d
+        return self.wall.prolongations[line].T @ state.wall.d
 
-    def wall_velocity(self, line: int = LUMEN) -> np.ndarray:
+    def wall_velocity(self, state: State, line: int = LUMEN) -> np.ndarray:
         """v on ``line``: on the lumen the fluid-updated thin velocity when the fluid carries it."""
-        if line == LUMEN and self.wall_state.v is not None:
-            return self.wall_state.v
-        return self.wall.prolongations[line].T @ self.wall_state.V
+        if line == LUMEN and state.v is not None:
+            return state.v
+        return self.wall.prolongations[line].T @ state.wall.V
 
     def dof_counts(self) -> dict[str, int]:
         out = {}
         if self.wall is not None:
             out["wall"] = int(self.wall.ndofs)
             out["wall_free"] = int(self.stack.free.size)
-        if self.fluid_state is not None:
-            out["fluid"] = int(self.fluid.channel.ndofs)
+        if self.fluid is not None:
+            out["fluid"] = int(self.fluid.ndofs)
         return out
 
     # -- probes ---------------------------------------------------------------
@@ -118,31 +132,31 @@ class Scene:
                 rows[p.name] = ("fluid", None, self.fluid.probe(p.quantity, p.z, p.r))
         return rows
 
-    def probe_values(self, rows: dict[str, Any]) -> dict[str, float]:
-        """The probes' values in the current state (line vectors computed once per line)."""
+    def probe_values(self, rows: dict[str, Any], state: State) -> dict[str, float]:
+        """The probes' values in ``state`` (line vectors computed once per line)."""
         lines: dict[tuple[str, int], np.ndarray] = {}
         out = {}
         for name, (kind, line, ev) in rows.items():
             if kind == "fluid":
-                out[name] = ev(self.fluid_state, self.fluid_eta)
+                out[name] = ev(state.fluid, state.eta)
                 continue
             if kind == "d":
-                vec = self.wall_state.d
+                vec = state.wall.d
             else:
                 if (kind, line) not in lines:
-                    lines[kind, line] = self.wall_velocity(line) if kind == "v" else self.eta(line)
+                    lines[kind, line] = self.wall_velocity(state, line) if kind == "v" else self.eta(state, line)
                 vec = lines[kind, line]
             out[name] = float((ev @ vec)[0])
         return out
 
     # -- snapshots ------------------------------------------------------------
-    def wall_snapshot(self) -> tuple[np.ndarray, dict, dict]:
+    def wall_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
         """Points, cells and point data of the wall at its reference position.
 
         ``displacement`` is a 3-vector field, so ParaView's *Warp By Vector*
         shows the deformed wall.
         """
-        wall, st = self.wall, self.wall_state
+        wall, st = self.wall, state.wall
         if wall.basis is None:
             line = wall.lines[0]
             mesh = line.basis.mesh
@@ -151,7 +165,7 @@ class Scene:
             pts = np.column_stack([mesh.p[0], np.full(mesh.p.shape[1], line.radius), np.zeros(mesh.p.shape[1])])
             disp = np.column_stack([np.zeros_like(eta), eta, np.zeros_like(eta)])
             return pts, {"line": mesh.t.T}, {"displacement": disp, "eta": eta,
-                                             "velocity_r": self.wall_velocity(0)[vert]}
+                                             "velocity_r": self.wall_velocity(state, 0)[vert]}
         mesh = wall.basis.mesh
         nd = wall.basis.nodal_dofs
         pts = np.column_stack([mesh.p[0], mesh.p[1], np.zeros(mesh.p.shape[1])])
@@ -159,9 +173,9 @@ class Scene:
         vel = np.column_stack([st.V[nd[0]], st.V[nd[1]], np.zeros(mesh.p.shape[1])])
         return pts, {"triangle": mesh.t.T}, {"displacement": disp, "velocity": vel}
 
-    def fluid_snapshot(self) -> tuple[np.ndarray, dict, dict]:
+    def fluid_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
         """The channel in its physical (deformed) place: velocity, pressure, ALE displacement."""
-        pts, tri, data = self.fluid.snapshot(self.fluid_state, self.fluid_eta)
+        pts, tri, data = self.fluid.snapshot(state.fluid, state.eta)
         return _xyz(pts), {"triangle": tri}, {k: _xyz(v) if np.ndim(v) == 2 else v for k, v in data.items()}
 
 

@@ -1,0 +1,57 @@
+"""Pieces every coupler of a fluid and a wall shares: the interface mass, loads, ledger groups.
+
+Couplers are plugins; what more than one of them needs lives here once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.setup import Setup
+from multilayer.timescheme import TimeScheme
+from multilayer.wall import LUMEN
+
+
+def lumen_layers(setup: Setup) -> list[int]:
+    """Indices of the thin layers on the fluid interface line (r = R)."""
+    return [p.index for p in setup.wall.placements if p.line == LUMEN]
+
+
+def lumen_mass(setup: Setup, index: int | None = None) -> sp.csr_matrix:
+    """ρ₁h ∫ v ψ of the thin layers on the fluid interface (or of layer ``index``), in the line's numbering."""
+    P = setup.wall.prolongations[LUMEN]
+    masses = [setup.stack.matrices[i].mass for i in (lumen_layers(setup) if index is None else [index])]
+    return (P.T @ sum(masses[1:], masses[0]) @ P).tocsr()
+
+
+def window_loads(setup: Setup, scheme: TimeScheme, t0: float, t1: float) -> dict[str, float]:
+    """Every pressure load of the case averaged over the scheme's window of the step [t0, t1]."""
+    a, b = scheme.load_window(t0, t1)
+    loads = setup.case.loads
+    return {key: getattr(loads, key).average(a, b) for key in ("inlet", "outlet", "external", "interface")}
+
+
+def external_force(setup: Setup, pressure: float) -> np.ndarray:
+    """The load vector of the external pressure P_e on the outer surface (wall numbering)."""
+    return -pressure * setup.wall.line_load(setup.wall.outer_line)
+
+
+def fluid_groups(terms: Mapping[str, float]) -> tuple[dict, dict, dict]:
+    """The fluid's identity terms as ledger groups (stored, work, dissipation)."""
+    stored = {"kinetic.fluid": terms["kinetic.fluid"]}
+    work = {k: terms[k] for k in ("work.inlet", "work.outlet", "work.wall") if k in terms}
+    dissipation = {k: terms[k] for k in ("dissipation.viscous.fluid", "dissipation.geometric.fluid")}
+    return stored, work, dissipation
+
+
+def quadratic(M: sp.spmatrix):
+    """x ↦ ½ xᵀ M x."""
+    return lambda x: 0.5 * float(x @ (M @ x))
+
+
+def relative(residual: float, scale: float) -> float:
+    """|residual| / scale, 0 for a zero scale."""
+    return abs(residual) / scale if scale > 0 else 0.0
