@@ -15,6 +15,23 @@ from multilayer.timescheme import TimeScheme
 from multilayer.wall import LUMEN
 
 
+def coupled_case_problems(name: str, case) -> list[str]:
+    """What a coupler of a fluid and a wall whose first layer is thin cannot run."""
+    problems = []
+    if case.fluid is None:
+        problems.append(f"{name} couples a fluid to the wall: declare [fluid], or choose the coupler 'structure-only'")
+    if not case.layers:
+        problems.append(f"{name} needs a wall: declare [[layers]], or choose 'fluid-only'")
+    elif not case.layers[0].thin:
+        problems.append(f"{name} needs a thin layer at the fluid interface, but layers[0] is "
+                        f"'{case.layers[0].model}' (thick): put a thin layer (e.g. 'koiter-shell' or "
+                        f"'wave-membrane') first in [[layers]]")
+    if case.loads.wall_motion is not None:
+        problems.append(f"loads.wall_motion prescribes the wall, which {name} computes: "
+                        "remove it, or choose the coupler 'fluid-only' without [[layers]]")
+    return problems
+
+
 def lumen_layers(setup: Setup) -> list[int]:
     """Indices of the thin layers on the fluid interface line (r = R)."""
     return [p.index for p in setup.wall.placements if p.line == LUMEN]

@@ -73,9 +73,8 @@ class StructureStep:
         self.scheme = scheme
         self.dt = dt
         self.fluid_line = fluid_line
-        f = stack.free
-        A = self.matrix().tocsr()
-        self._solver = factorize(A[f][:, f], stats, backend)
+        self._stats, self._backend = stats, backend
+        self._solver = None  # factorized at the first step: a monolithic solve uses only matrix() and rhs()
 
     def matrix(self):
         """(α₀/β₀) M/Δt + C + (β₀Δt/α₀) K in the wall's numbering (every DOF)."""
@@ -103,6 +102,9 @@ class StructureStep:
         """
         st = self.stack
         states = state.history(self.scheme.levels - 1)
+        if self._solver is None:
+            f = st.free
+            self._solver = factorize(self.matrix().tocsr()[f][:, f], self._stats, self._backend)
         mean = np.zeros(st.space.ndofs)
         mean[st.free] = self._solver.solve(self.rhs(states, forces)[st.free])
         return self.finish(states, mean, forces)

@@ -32,7 +32,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from multilayer.coupling import external_force, quadratic, fluid_groups, lumen_layers, lumen_mass, relative, window_loads
+from multilayer.coupling import coupled_case_problems, external_force, quadratic, fluid_groups, lumen_layers, lumen_mass, relative, window_loads
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, Domain, Interface, StepReport
 from multilayer.records import CouplerPlugin, Param
@@ -59,20 +59,7 @@ class KinematicSplitting(Coupler):
         self.extrapolation = int(extrapolation)
 
     def check_case(self, case) -> list[str]:
-        problems = super().check_case(case)
-        if case.fluid is None:
-            problems.append(f"{self.name} couples a fluid to the wall: declare [fluid], "
-                            "or choose the coupler 'structure-only'")
-        if not case.layers:
-            problems.append(f"{self.name} needs a wall: declare [[layers]], or choose 'fluid-only'")
-        elif not case.layers[0].thin:
-            problems.append(f"{self.name} needs a thin layer at the fluid interface, but layers[0] is "
-                            f"'{case.layers[0].model}' (thick): put a thin layer (e.g. 'koiter-shell' or "
-                            f"'wave-membrane') first in [[layers]]")
-        if case.loads.wall_motion is not None:
-            problems.append(f"loads.wall_motion prescribes the wall, which {self.name} computes: "
-                            "remove it, or choose the coupler 'fluid-only' without [[layers]]")
-        return problems
+        return super().check_case(case) + coupled_case_problems(self.name, case)
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state, LUMEN),
@@ -110,22 +97,28 @@ class KinematicSplitting(Coupler):
             a1_res = sum(a.stored.values()) - before - sum(a.work.values()) + sum(a.dissipation.values())
             a1_scale = max(abs(sum(a.stored.values())), abs(before), 1e-300)
             # A2: the fluid on the domain A1 left, the thin layer's inertia as the Robin term
-            domain = Domain(S.geometry([eta_new, eta_old]), P.T @ a.mean)
-            interface = Interface(robin, -(M @ S.history([v_star])) / dt - tau)
+            # the thin layer's A2 inertia (α₀/β₀)M/Δt (v̄ − V̄_Γ): from A1's test-level velocity, so that its
+            # new level x^{n+1} = (x̄ − β₁xⁿ)/β₀ starts from vⁿ, like the fluid's trace (u^{n+1} = v^{n+1} on Γ)
+            v_mean_a1 = P.T @ a.mean
+            interface = Interface(robin, robin @ v_mean_a1 - tau)
+            domain = Domain(S.geometry([eta_new, eta_old]), v_mean_a1)
             sol, f = fluid.step([state.fluid], domain, S, dt, loads["inlet"], loads["outlet"], interface,
                                 eta_old, eta_new)
             v_new = fluid.wall_velocity(sol.state)
-            v_bar = S.average([v_new, v_star])  # ū on Γ, the thin layer's test-level velocity
+            v_bar = S.average([v_new, state.v])  # ū on Γ, the thin layer's test-level velocity
             traction = robin @ v_bar - interface.rhs  # the fluid's force on the thin layer over the step
             new = state.then(S.levels - 1, n=n + 1, t=t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
                              extra={"traction": traction})
             stored_f, work_f, diss_f = fluid_groups(f)
             stored = dict(a.stored)
             numerical_thin = 0.0
+            splitting = 0.0
             for i in thin:
                 kinetic = quadratic(masses[i])
                 stored[f"kinetic.layers[{i}]"] = S.stored(kinetic, [v_new, v_star])
                 numerical_thin += S.numerical(kinetic, [v_new, v_star])
+                # what testing the inertia with v̄ leaves beyond the scheme's identity (0 for backward Euler)
+                splitting += S.alpha[0] * float((v_new - v_star) @ (masses[i] @ (v_bar - S.average([v_new, v_star]))))
             stored.update(stored_f)
             work = {k: w for k, w in a.work.items() if k != "work.splitting"}
             work.update(work_f)
@@ -135,6 +128,8 @@ class KinematicSplitting(Coupler):
             dissipation["dissipation.numerical.A1"] = a.dissipation["dissipation.numerical.wall"]
             dissipation["dissipation.numerical.A2"] = f["dissipation.numerical.fluid"] + numerical_thin
             dissipation.update(diss_f)
+            if S.name != "backward-euler":
+                dissipation["dissipation.splitting"] = splitting
             report = StepReport(stored, work, dissipation, {
                 "energy.relative_residual.A1": relative(a1_res, a1_scale),
                 "energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),

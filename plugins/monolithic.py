@@ -1,0 +1,115 @@
+"""``monolithic``: the fluid and every layer of the wall in one linear system per step.
+
+The conforming layout (SCHEME §5) makes this a sum: the thin layer's DOFs
+are the fluid's u_r DOFs on Γ, so adding the wall's equations to the
+fluid's on those rows (test functions q = ψ e_r) cancels the interface
+traction exactly; no traction is ever computed.  Both are solved for the
+scheme's test-level unknowns (ū, p̄, V̄) with ū_r = V̄ on Γ, so the
+kinematic condition holds at every level.
+
+The geometry is explicit: the domain of each step is predicted from the
+previous wall velocities, vⁿ for backward Euler, the linear extrapolation
+to the evaluation time for Crank–Nicolson and BDF2 (second order).  The
+energy identity is the sum of the wall's and the fluid's; what the
+predicted domain misses of the true one is the fluid's geometric remainder
+(``dissipation.geometric.fluid``).  No splitting error: this is the
+accuracy reference of the project, and its cost anchor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, window_loads
+from multilayer.hookspecs import hookimpl
+from multilayer.interfaces import Coupler, Domain, StepReport
+from multilayer.linsolve import factorize
+from multilayer.records import CouplerPlugin
+from multilayer.state import State
+from multilayer.structure import StructureStep, wall_energy
+from multilayer.timescheme import SCHEMES, scheme_param
+from multilayer.wall import LUMEN
+
+
+class Monolithic(Coupler):
+    name = "monolithic"
+    loads = ("inlet", "outlet", "external")
+    schemes = tuple(SCHEMES)
+
+    def check_case(self, case) -> list[str]:
+        return super().check_case(case) + coupled_case_problems(self.name, case)
+
+    def energy(self, setup, state: State) -> dict[str, float]:
+        return {**wall_energy(setup.stack, self.scheme, state),
+                "kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+
+    @staticmethod
+    def numbering(setup) -> np.ndarray:
+        """The unknown of the monolithic system of each wall DOF.
+
+        The fluid's unknowns come first; a wall DOF on the lumen line's radial
+        component is the fluid's wall u_r there, every other wall DOF follows.
+        """
+        wall, fluid = setup.wall, setup.fluid
+        nf = fluid.ndofs
+        glob = np.full(wall.ndofs, -1, dtype=np.int64)
+        glob[wall.line_dofs(LUMEN)] = fluid.interface_dofs
+        rest = np.flatnonzero(glob < 0)
+        glob[rest] = nf + np.arange(rest.size)
+        return glob
+
+    def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        S, dt, fluid, wall, stack = self.scheme, setup.dt, setup.fluid, setup.wall, setup.stack
+        P = wall.prolongations[LUMEN]
+        structure = StructureStep(stack, S, dt, setup.stats("wall"))
+        glob = self.numbering(setup)
+        n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
+        A_wall = sp.coo_matrix(structure.matrix())
+        wall_rows, wall_cols = glob[A_wall.row], glob[A_wall.col]
+        wall_fixed = glob[stack.fixed]
+        stats = setup.stats("monolithic")
+        for step, t0, t1 in setup.windows(state.n):
+            loads = window_loads(setup, S, t0, t1)
+            history = state.history(S.levels - 1)
+            etas = [x.eta for x in history]
+            # the explicit domain: the wall velocity extrapolated to where the operator is evaluated
+            v_pred = S.extrapolate([x.v for x in history])
+            eta_pred = S.displacement(v_pred, etas, dt)
+            domain = Domain(S.geometry([eta_pred, *etas]), v_pred)
+            system = fluid.system([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"])
+            A_f, b_f, fixed_f, values_f = fluid.matrix(system)
+            forces = {"external": external_force(setup, loads["external"])}
+            A_f = A_f.tocoo()
+            A = sp.csr_matrix((np.concatenate([A_f.data, A_wall.data]),
+                               (np.concatenate([A_f.row, wall_rows]), np.concatenate([A_f.col, wall_cols]))),
+                              shape=(n, n))
+            b = np.zeros(n)
+            b[: A_f.shape[0]] = b_f
+            np.add.at(b, glob, structure.rhs(history, forces))
+            fixed = np.unique(np.concatenate([fixed_f, wall_fixed]))
+            x = np.zeros(n)
+            x[fixed_f] = values_f
+            free = np.setdiff1d(np.arange(n), fixed)
+            rhs = b[free] - A[free][:, fixed] @ x[fixed]
+            x[free] = factorize(A[free][:, free], stats, setup.case.solver).solve(rhs)
+            # each part takes back its share of the solution
+            solution = fluid.advance(system, x[: A_f.shape[0]])
+            w = structure.finish(history, x[glob], forces)
+            eta_new = P.T @ w.wall.d
+            terms = fluid.identity(system, solution, etas[0], eta_new)
+            state = state.then(S.levels - 1, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
+                               v=fluid.wall_velocity(solution.state), eta=eta_new)
+            stored_f, work_f, dissipation_f = fluid_groups(terms)
+            dissipation = {**w.dissipation, **dissipation_f,
+                           "dissipation.numerical.fluid": terms["dissipation.numerical.fluid"]}
+            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, dissipation)
+
+
+@hookimpl
+def multilayer_couplers():
+    return [CouplerPlugin(name="monolithic", factory=Monolithic, params=(scheme_param(tuple(SCHEMES)),),
+                          doc="Fluid and wall in one linear system per step (geometry explicit); the accuracy "
+                              "reference.")]
