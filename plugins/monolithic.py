@@ -23,6 +23,7 @@ from collections.abc import Iterator
 import numpy as np
 import scipy.sparse as sp
 
+from multilayer.assembly.pattern import Pattern
 from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, window_loads
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, Domain, StepReport
@@ -68,9 +69,8 @@ class Monolithic(Coupler):
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
         A_wall = sp.coo_matrix(structure.matrix())
-        wall_rows, wall_cols = glob[A_wall.row], glob[A_wall.col]
-        wall_fixed = glob[stack.fixed]
         stats = setup.stats("monolithic")
+        layout = None
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.levels - 1)
@@ -81,22 +81,19 @@ class Monolithic(Coupler):
             domain = Domain(S.geometry([eta_pred, *etas]), v_pred)
             system = fluid.system([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"])
             A_f, b_f, fixed_f, values_f = fluid.matrix(system)
+            if layout is None or not layout.fits(A_f):
+                layout = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
             forces = {"external": external_force(setup, loads["external"])}
-            A_f = A_f.tocoo()
-            A = sp.csr_matrix((np.concatenate([A_f.data, A_wall.data]),
-                               (np.concatenate([A_f.row, wall_rows]), np.concatenate([A_f.col, wall_cols]))),
-                              shape=(n, n))
+            data = layout.pattern.fill([(layout.fluid_slots, A_f.data), (layout.wall_slots, A_wall.data)])
             b = np.zeros(n)
-            b[: A_f.shape[0]] = b_f
+            b[: fluid.ndofs] = b_f
             np.add.at(b, glob, structure.rhs(history, forces))
-            fixed = np.unique(np.concatenate([fixed_f, wall_fixed]))
             x = np.zeros(n)
             x[fixed_f] = values_f
-            free = np.setdiff1d(np.arange(n), fixed)
-            rhs = b[free] - A[free][:, fixed] @ x[fixed]
-            x[free] = factorize(A[free][:, free], stats, setup.case.solver).solve(rhs)
+            rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
+            x[layout.free] = factorize(layout.free_free.matrix(data), stats, setup.case.solver).solve(rhs)
             # each part takes back its share of the solution
-            solution = fluid.advance(system, x[: A_f.shape[0]])
+            solution = fluid.advance(system, x[: fluid.ndofs])
             w = structure.finish(history, x[glob], forces)
             eta_new = P.T @ w.wall.d
             terms = fluid.identity(system, solution, etas[0], eta_new)
@@ -106,6 +103,31 @@ class Monolithic(Coupler):
             dissipation = {**w.dissipation, **dissipation_f,
                            "dissipation.numerical.fluid": terms["dissipation.numerical.fluid"]}
             yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, dissipation)
+
+
+class Layout:
+    """The monolithic system's sparsity, fixed for the run: the fluid's pattern and the wall's, summed.
+
+    A step fills it with one ``bincount`` and takes the free/fixed blocks as
+    index maps (:class:`multilayer.assembly.pattern.Pattern`), like the fluid's own step.
+    """
+
+    def __init__(self, A_f: sp.csr_matrix, A_wall: sp.coo_matrix, glob: np.ndarray, fixed: np.ndarray, n: int):
+        self.indptr, self.indices = A_f.indptr.copy(), A_f.indices.copy()  # the fluid's pattern
+        f = A_f.tocoo()
+        fluid_entries = (f.row.astype(np.int64), f.col.astype(np.int64))
+        wall_entries = (glob[A_wall.row], glob[A_wall.col])
+        self.pattern = Pattern((n, n), [fluid_entries, wall_entries])
+        self.fluid_slots = self.pattern.slots(*fluid_entries)
+        self.wall_slots = self.pattern.slots(*wall_entries)
+        self.fixed = np.unique(fixed)
+        self.free = np.setdiff1d(np.arange(n), self.fixed)
+        self.free_free = self.pattern.block(self.free, self.free)
+        self.free_fixed = self.pattern.block(self.free, self.fixed)
+
+    def fits(self, A_f: sp.csr_matrix) -> bool:
+        """True when the fluid's matrix still has the pattern this layout was built for."""
+        return np.array_equal(A_f.indptr, self.indptr) and np.array_equal(A_f.indices, self.indices)
 
 
 @hookimpl
