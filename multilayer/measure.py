@@ -60,11 +60,42 @@ def read_series(path: Path) -> dict[str, np.ndarray]:
             for i, c in enumerate(columns)}
 
 
-def read_run(label: str, folder: Path) -> RunData:
-    """The summary and series of the results folder ``folder`` (empty parts when missing)."""
+def read_run(label: str, folder: Path, status: str | None = None, reason: str = "") -> RunData:
+    """The summary and series of the results folder ``folder`` (empty parts when missing).
+
+    ``status`` and ``reason``, when given, are what running it returned;
+    they replace the summary's when the two disagree (a run that raised
+    before its ``summary.json`` said so).
+    """
     summary_path = folder / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    if status is not None and summary.get("status") != status:
+        summary = {**summary, "status": status, "reason": reason}
     return RunData(label, folder, summary, read_series(folder / "series.csv"))
+
+
+def dof_counts(summary: Mapping[str, Any]) -> dict[str, int]:
+    """The DOFs of ``summary.json`` by part, ``wall_free`` left out (it is part of ``wall``).
+
+    >>> dof_counts({"dofs": {"wall": 7, "wall_free": 5, "fluid": 9}})
+    {'wall': 7, 'fluid': 9}
+    """
+    return {k: v for k, v in (summary.get("dofs") or {}).items() if k != "wall_free"}
+
+
+def without_nan(value: Any) -> Any:
+    """JSON has no NaN: a non-finite number becomes null (in nested tables and lists too).
+
+    >>> without_nan({"a": [1.0, float("nan")], "b": float("inf")})
+    {'a': [1.0, None], 'b': None}
+    """
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Mapping):
+        return {k: without_nan(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [without_nan(v) for v in value]
+    return value
 
 
 def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -193,7 +224,7 @@ def measure(run: RunData, reference: RunData | None, registry: Registry) -> dict
     at the ``eta`` probes both runs have (same name).
     """
     s, series = run.summary, run.series
-    dofs = {k: v for k, v in (s.get("dofs") or {}).items() if k != "wall_free"}
+    dofs = dof_counts(s)
     probes = {}
     for p in run.probes:
         entry = {"quantity": p["quantity"], "z": p["z"], "r": p.get("r"), "line": p.get("line")}
