@@ -135,7 +135,7 @@ def max_abs_difference(t_a: np.ndarray, y_a: np.ndarray, t_b: np.ndarray, y_b: n
     >>> max_abs_difference(t, np.array([0.0, 1.0, 0.0]), np.array([0.0, 2.0]), np.array([0.0, 0.0]))
     1.0
     """
-    a, b = _finite(t_a, y_a), _finite(t_b, y_b)
+    a, b = finite_rows(t_a, y_a), finite_rows(t_b, y_b)
     if not len(a[0]) or not len(b[0]):
         return None
     lo, hi = max(a[0][0], b[0][0]), min(a[0][-1], b[0][-1])
@@ -146,7 +146,8 @@ def max_abs_difference(t_a: np.ndarray, y_a: np.ndarray, t_b: np.ndarray, y_b: n
     return float(np.max(np.abs(np.interp(grid, *a) - np.interp(grid, *b))))
 
 
-def _finite(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def finite_rows(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, y) without the rows where either is NaN or infinite (an empty CSV cell reads as NaN)."""
     keep = np.isfinite(t) & np.isfinite(y)
     return np.asarray(t)[keep], np.asarray(y)[keep]
 
@@ -160,7 +161,7 @@ def arrival(t: np.ndarray, y: np.ndarray) -> dict[str, Any]:
     >>> arrival(np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.0, 1.0, 4.0, -2.0]))
     {'peak': 4.0, 'peak_time': 3.0, 'half_peak_time': 2.3333333333333335, 'peaked': True}
     """
-    t, y = _finite(t, y)
+    t, y = finite_rows(t, y)
     a = np.abs(y)
     if not len(a) or a.max() == 0.0:
         return {"peak": None, "peak_time": None, "half_peak_time": None, "peaked": False}
