@@ -596,11 +596,10 @@ def reference_error(reference: RunData, ref_order: float, rows: Sequence[Mapping
             observed = richardson_order([r["dt"] for r in chain], d_coarse[key], d_fine[key])
         trusted = observed is not None and ORDER_RANGE[0] <= observed <= ORDER_RANGE[1]
         p = observed if trusted else ref_order
-        estimate = None
-        if d_fine[key] is not None:
-            estimate = richardson(d_fine[key], ratio, p) * (dt_ref / fine["dt"]) ** p
-        out[key] = {"difference": d_fine[key], "observed_order": observed,
-                    "order": p, "order_from": "observed" if trusted else "formal", "estimate": estimate}
+        scale = (dt_ref / fine["dt"]) ** p
+        estimate = None if d_fine[key] is None else richardson(d_fine[key], ratio, p) * scale
+        out[key] = {"difference": d_fine[key], "observed_order": observed, "order": p,
+                    "order_from": "observed" if trusted else "formal", "scale": scale, "estimate": estimate}
     return out
 
 
@@ -709,8 +708,11 @@ def markdown(data: Mapping[str, Any]) -> str:
         if rich.get("estimated"):
             parts = [f"{name} ≈ {_pct(rich[key]['estimate'])} (p = {cell(rich[key]['order'])}, "
                      f"{rich[key]['order_from']})" for key, name in (("error", "error"), ("peak_error", "peak error"))]
+            scaled = (f", times (Δt_ref/Δt_fine)^p = {cell(rich['error']['scale'])} for the reference's Δt"
+                      if rich["error"]["scale"] != 1.0 else "")
             lines += [f"Its own error by Richardson from `{rich['coarse']}` and `{rich['fine']}` (Δt ratio "
-                      f"{cell(rich['ratio'])}): " + "; ".join(parts) + ". Errors below that are not resolved.", ""]
+                      f"{cell(rich['ratio'])}{scaled}): " + "; ".join(parts) + ". Errors below that are not resolved.",
+                      ""]
         else:
             lines += [f"Its own error is not estimated: {rich['note']}.", ""]
     if data["space_error_included"]:

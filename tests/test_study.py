@@ -301,6 +301,7 @@ def test_a_failed_run_is_reported_and_the_reference_case_runs_into_its_folder(tm
     data = json.loads((out / "study.json").read_text())
     ok, failed = data["runs"]
     assert data["reference"]["label"] == "reference" and (out / "reference" / "series.csv").is_file()
+    assert not data["reference"]["richardson"]["estimated"]  # one ok run of the reference's scene: no Δt ratio
     assert ok["status"] == "ok" and ok["compared"] and ok["error"] == 0.0  # the same scene as the reference
     assert failed["status"] == "failed" and "wall collapse" in failed["reason"] and failed["error"] is None
     err = capsys.readouterr().err
