@@ -289,8 +289,22 @@ def relative_linf(t: np.ndarray, y: np.ndarray, t_ref: np.ndarray, y_ref: np.nda
     Only the times both series cover count: a row of ``t`` outside the
     reference's span is skipped.  The scale max |y_ref| is taken over the
     reference's own rows in that span, so it does not depend on the run.
-    None without common rows or when the reference is 0 there.
 
+    Parameters
+    ----------
+    t, y : ndarray
+        The run's times (s) and values; rows with a NaN are left out.
+    t_ref, y_ref : ndarray
+        The reference's, on its own (usually finer) time grid.
+
+    Returns
+    -------
+    float or None
+        The relative error; None without common rows or when the reference
+        is 0 on them.
+
+    Examples
+    --------
     >>> t_ref = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
     >>> relative_linf(np.array([1.0, 2.0, 3.0]), np.array([0.0, 1.5, 0.0]), t_ref, np.array([0.0, 0.0, 1.0, 0.0, 0.0]))
     0.5
@@ -316,6 +330,20 @@ def probe_errors(t: np.ndarray, y: np.ndarray, t_ref: np.ndarray, y_ref: np.ndar
     ``peak_error`` = |peak − peak_ref| / |peak_ref|; ``arrival_diff_s`` =
     peak_time − peak_time_ref.
 
+    Parameters
+    ----------
+    t, y, t_ref, y_ref : ndarray
+        As for :func:`relative_linf`.
+
+    Returns
+    -------
+    dict
+        ``relative_linf``, ``peak``, ``peak_time``, ``peak_ref``,
+        ``peak_time_ref``, ``peak_error``, ``arrival_diff_s``; all None
+        without common times.
+
+    Examples
+    --------
     >>> e = probe_errors(np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.9, 0.3]),
     ...                  np.array([0.5, 1.5, 2.5, 3.5]), np.array([0.0, 0.5, 1.0, 0.2]))
     >>> e["peak_error"], e["arrival_diff_s"]
@@ -342,9 +370,21 @@ def probe_errors(t: np.ndarray, y: np.ndarray, t_ref: np.ndarray, y_ref: np.ndar
 def observed_orders(dt: Sequence[float], errors: Sequence[float | None]) -> list[float | None]:
     """p = log(e_coarse/e_fine) / log(dt_coarse/dt_fine) between successive Δt (coarse to fine).
 
-    ``result[i]`` is the order between runs i and i + 1; None where an
-    error is missing or not > 0.
+    Parameters
+    ----------
+    dt : sequence of float
+        The time steps, strictly decreasing (ValueError otherwise).
+    errors : sequence of float or None
+        The error of each run.
 
+    Returns
+    -------
+    list of float or None
+        ``result[i]`` is the order between runs i and i + 1; None where an
+        error is missing or not > 0.
+
+    Examples
+    --------
     >>> observed_orders([4e-4, 2e-4, 1e-4], [8.0, 4.0, None])
     [1.0, None]
     """
@@ -360,6 +400,19 @@ def observed_orders(dt: Sequence[float], errors: Sequence[float | None]) -> list
 def pareto_front(cost: Sequence[float], error: Sequence[float]) -> list[int]:
     """Indices of the points no other point beats: none as cheap and as accurate, and better in one.
 
+    Parameters
+    ----------
+    cost, error : sequence of float
+        Wall time and error of each point.
+
+    Returns
+    -------
+    list of int
+        The indices of the non-dominated points, in their order; two equal
+        points do not beat each other.
+
+    Examples
+    --------
     >>> pareto_front([1.0, 2.0, 3.0, 2.5, 1.0], [0.5, 0.1, 0.01, 0.2, 0.6])
     [0, 1, 2]
     """
@@ -372,6 +425,22 @@ def richardson(difference: float, ratio: float, order: float) -> float:
 
     For X(Δt) = X + C Δt^p and r = Δt_coarse/Δt_fine it is exactly |X(Δt_fine) − X|.
 
+    Parameters
+    ----------
+    difference : float
+        |X_fine − X_coarse|, in whatever measure X is compared.
+    ratio : float
+        r = Δt_coarse / Δt_fine > 1.
+    order : float
+        p, observed or formal.
+
+    Returns
+    -------
+    float
+        The estimated error of the finer run.
+
+    Examples
+    --------
     >>> richardson(0.3, 2.0, 1.0), richardson(0.4, 3.0, 2.0)
     (0.3, 0.05)
     """
@@ -384,8 +453,21 @@ def richardson_order(dt: Sequence[float], d_coarse: float, d_fine: float) -> flo
     ``d_coarse`` = |X(Δt₀) − X(Δt₁)|, ``d_fine`` = |X(Δt₁) − X(Δt₂)|.  With
     one ratio r it is log(d_coarse/d_fine)/log r; otherwise the root of
     (Δt₀^p − Δt₁^p)/(Δt₁^p − Δt₂^p) = d_coarse/d_fine in p ∈ [0.01, 20].
-    None when the differences are not > 0 or there is no root.
 
+    Parameters
+    ----------
+    dt : sequence of three floats
+        Δt₀ > Δt₁ > Δt₂.
+    d_coarse, d_fine : float
+        The two successive differences.
+
+    Returns
+    -------
+    float or None
+        p; None when a difference is not > 0 or there is no root.
+
+    Examples
+    --------
     >>> richardson_order([4.0, 2.0, 1.0], 12.0, 3.0)
     2.0
     >>> round(richardson_order([5.0, 2.0, 1.0], 21.0, 3.0), 12)
@@ -418,6 +500,25 @@ def cost_to_target(wall: Sequence[float], error: Sequence[float], target: float,
     t = t_run·(e_run/target)^(1/p) ("estimated"); "not reached" without
     such a run or a p > 0.
 
+    Parameters
+    ----------
+    wall, error : sequence of float
+        Wall time (s) and error of each run of the coupler.
+    target : float
+        The error to reach.
+    finest : int, optional
+        Index of the run to extrapolate from.
+    order : float, optional
+        The observed order p of the error near that run.
+
+    Returns
+    -------
+    dict
+        ``how``, ``wall_time_s`` (None when not reached), ``run`` (the
+        index measured or extrapolated from), ``order`` (p when estimated).
+
+    Examples
+    --------
     >>> cost_to_target([1.0, 2.0, 4.0], [0.2, 0.1, 0.05], 0.1)
     {'how': 'measured', 'wall_time_s': 2.0, 'run': 1, 'order': None}
     >>> cost_to_target([1.0, 2.0, 4.0], [0.2, 0.1, 0.05], 0.0125, finest=2, order=2.0)

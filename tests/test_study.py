@@ -221,6 +221,15 @@ def test_bad_input_exits_2_naming_the_key_and_the_value(tmp_path, capsys, extra,
     assert not out.exists()
 
 
+def test_a_coupler_name_and_a_coupler_table_are_the_same_override():
+    from multilayer.casefile import load_case
+
+    plain = load_case(PULSE)
+    for item in study.parse_couplers('kinematic-splitting,{model="kinematic-splitting"}', ["kinematic-splitting"]):
+        case = load_case(PULSE, [item.override])
+        assert case.digest == plain.digest and case.coupler.model == "kinematic-splitting"
+
+
 def test_an_invalid_coupler_parameter_is_listed_per_run(tmp_path, capsys):
     out = tmp_path / "study"
     code = main(study_argv(out, "--couplers", 'kinematic-splitting,{model="kinematic-splitting",beta=0.5}',
