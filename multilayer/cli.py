@@ -1,4 +1,4 @@
-"""The ``multilayer`` command: run, validate, plugins, compare.
+"""The ``multilayer`` command: run, validate, plugins, compare, study.
 
 Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
 (the problems on stderr, one per line, without a traceback).
@@ -7,6 +7,7 @@ Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
     multilayer run cases/pulse.toml --out results/pulse
     multilayer plugins --plugin my_layer.py
     multilayer compare cases/membrane-mode.toml --vary layers[0].tension=2e4,8e4 --out results/tension
+    multilayer study cases/pulse-koiter.toml --vary time.dt=1e-4,5e-5,2.5e-5 --out results/dt-study
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import shlex
 import sys
 import traceback
 from collections.abc import Sequence
@@ -86,6 +88,18 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                          help="override a value of every variant")
     common(compare, case=False)
+
+    # -- study: multilayer.study ----------------------------------------------
+    study = commands.add_parser("study", help="speed against error: couplers x time steps (x meshes) against a reference")
+    common(study)
+    study.add_argument("--out", type=Path, required=True, help="study folder; each run goes into OUT/<coupler>/<key=value>/")
+    study.add_argument("--couplers", metavar="A,B,...",
+                       help="coupler names or inline tables replacing [coupler] (default: the case's own)")
+    study.add_argument("--vary", dest="varies", action="append", default=[], metavar="KEY=A,B[,C...]",
+                       help="values of a key, e.g. time.dt=1e-4,5e-5 (repeatable: the grid is their product)")
+    study.add_argument("--reference", type=Path, metavar="CASE",
+                       help="run this case file as the reference (default: the finest run of the highest-order coupler)")
+    study.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
     return parser
 
 
@@ -100,6 +114,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             from multilayer import compare
 
             return compare.main(args.cases, args.out, args.vary, args.overrides, registry)
+        if args.command == "study":
+            from multilayer import study
+
+            command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
+            return study.main(args.case, args.out, args.couplers, args.varies, args.reference, args.jobs,
+                              args.overrides, registry, args.plugins, command)
         from multilayer.casefile import load_case
 
         case = load_case(args.case, args.overrides, registry)

@@ -12,20 +12,16 @@ own files.  See ``docs/compare.md``.
 from __future__ import annotations
 
 import json
-import math
 import sys
-import traceback
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import attrs
-
 from multilayer.cli import FAILED, INVALID, OK
-from multilayer.measure import RunData, compare_runs, lumen_eta, read_run
+from multilayer.measure import RunData, compare_runs, lumen_eta, read_run, without_nan
 from multilayer.problems import CaseError
 from multilayer.registry import Registry
-from multilayer.variants import Variant, load_variants, make_variants
+from multilayer.variants import Variant, invalid_message, load_variants, make_variants, run_variant
 
 
 def run_variants(loaded: Sequence[tuple[Variant, Any]], out: Path, registry: Registry,
@@ -35,20 +31,11 @@ def run_variants(loaded: Sequence[tuple[Variant, Any]], out: Path, registry: Reg
     A run that raises (a bug, not a failed run) is logged with its traceback
     and kept as a failed variant.
     """
-    from multilayer.run import run_case
-
     runs = []
     for i, (variant, case) in enumerate(loaded, start=1):
         folder = out / variant.label
-        try:
-            result = run_case(case, folder, registry)
-            status, reason = result.status, result.reason
-        except Exception as exc:  # keep the other variants; the traceback says where
-            traceback.print_exc()
-            status, reason = "failed", f"{type(exc).__name__}: {exc}"
-        run = read_run(variant.label, folder)
-        if run.summary.get("status") != status:
-            run = attrs.evolve(run, summary={**run.summary, "status": status, "reason": reason})
+        status, reason = run_variant(case, folder, registry)
+        run = read_run(variant.label, folder, status, reason)
         log(f"[{i}/{len(loaded)}] {variant.label}: {status}" + (f" ({reason})" if reason else ""))
         runs.append(run)
     return runs
@@ -70,24 +57,13 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
         "reference": runs[0].label,
         "variants": columns,
     }
-    (out / "report.json").write_text(json.dumps(_without_nan(data), indent=2, allow_nan=False) + "\n")
+    (out / "report.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
     report.plot_probes(runs, out / "probes.png")
     radius = (first.get("geometry") or {}).get("radius")
     fields = {run.label: lumen_eta(run.folder, radius) for run in runs} if radius else {}
     report.plot_spacetime(fields, out / "eta_spacetime.png")
     (out / "report.md").write_text(report.markdown(data))
     return data
-
-
-def _without_nan(value: Any) -> Any:
-    """JSON has no NaN: a non-finite number becomes null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Mapping):
-        return {k: _without_nan(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_without_nan(v) for v in value]
-    return value
 
 
 def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Sequence[str],
@@ -101,10 +77,7 @@ def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Seq
         return INVALID
     loaded, invalid = load_variants(variants, registry)
     if invalid:
-        print(f"compare: {len(invalid)} of {len(variants)} variants invalid", file=sys.stderr)
-        for variant in variants:
-            for problem in invalid.get(variant.label, []):
-                print(f"{variant.label}: {problem}", file=sys.stderr)
+        print(invalid_message("compare", variants, invalid), file=sys.stderr)
         return INVALID
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

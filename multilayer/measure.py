@@ -60,11 +60,42 @@ def read_series(path: Path) -> dict[str, np.ndarray]:
             for i, c in enumerate(columns)}
 
 
-def read_run(label: str, folder: Path) -> RunData:
-    """The summary and series of the results folder ``folder`` (empty parts when missing)."""
+def read_run(label: str, folder: Path, status: str | None = None, reason: str = "") -> RunData:
+    """The summary and series of the results folder ``folder`` (empty parts when missing).
+
+    ``status`` and ``reason``, when given, are what running it returned;
+    they replace the summary's when the two disagree (a run that raised
+    before its ``summary.json`` said so).
+    """
     summary_path = folder / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    if status is not None and summary.get("status") != status:
+        summary = {**summary, "status": status, "reason": reason}
     return RunData(label, folder, summary, read_series(folder / "series.csv"))
+
+
+def dof_counts(summary: Mapping[str, Any]) -> dict[str, int]:
+    """The DOFs of ``summary.json`` by part, ``wall_free`` left out (it is part of ``wall``).
+
+    >>> dof_counts({"dofs": {"wall": 7, "wall_free": 5, "fluid": 9}})
+    {'wall': 7, 'fluid': 9}
+    """
+    return {k: v for k, v in (summary.get("dofs") or {}).items() if k != "wall_free"}
+
+
+def without_nan(value: Any) -> Any:
+    """JSON has no NaN: a non-finite number becomes null (in nested tables and lists too).
+
+    >>> without_nan({"a": [1.0, float("nan")], "b": float("inf")})
+    {'a': [1.0, None], 'b': None}
+    """
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Mapping):
+        return {k: without_nan(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [without_nan(v) for v in value]
+    return value
 
 
 def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -104,7 +135,7 @@ def max_abs_difference(t_a: np.ndarray, y_a: np.ndarray, t_b: np.ndarray, y_b: n
     >>> max_abs_difference(t, np.array([0.0, 1.0, 0.0]), np.array([0.0, 2.0]), np.array([0.0, 0.0]))
     1.0
     """
-    a, b = _finite(t_a, y_a), _finite(t_b, y_b)
+    a, b = finite_rows(t_a, y_a), finite_rows(t_b, y_b)
     if not len(a[0]) or not len(b[0]):
         return None
     lo, hi = max(a[0][0], b[0][0]), min(a[0][-1], b[0][-1])
@@ -115,7 +146,8 @@ def max_abs_difference(t_a: np.ndarray, y_a: np.ndarray, t_b: np.ndarray, y_b: n
     return float(np.max(np.abs(np.interp(grid, *a) - np.interp(grid, *b))))
 
 
-def _finite(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def finite_rows(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, y) without the rows where either is NaN or infinite (an empty CSV cell reads as NaN)."""
     keep = np.isfinite(t) & np.isfinite(y)
     return np.asarray(t)[keep], np.asarray(y)[keep]
 
@@ -129,7 +161,7 @@ def arrival(t: np.ndarray, y: np.ndarray) -> dict[str, Any]:
     >>> arrival(np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.0, 1.0, 4.0, -2.0]))
     {'peak': 4.0, 'peak_time': 3.0, 'half_peak_time': 2.3333333333333335, 'peaked': True}
     """
-    t, y = _finite(t, y)
+    t, y = finite_rows(t, y)
     a = np.abs(y)
     if not len(a) or a.max() == 0.0:
         return {"peak": None, "peak_time": None, "half_peak_time": None, "peaked": False}
@@ -193,7 +225,7 @@ def measure(run: RunData, reference: RunData | None, registry: Registry) -> dict
     at the ``eta`` probes both runs have (same name).
     """
     s, series = run.summary, run.series
-    dofs = {k: v for k, v in (s.get("dofs") or {}).items() if k != "wall_free"}
+    dofs = dof_counts(s)
     probes = {}
     for p in run.probes:
         entry = {"quantity": p["quantity"], "z": p["z"], "r": p.get("r"), "line": p.get("line")}

@@ -121,7 +121,8 @@ def _edges(x: np.ndarray) -> tuple[float, float]:
     return float(x[0] - half), float(x[-1] + half)
 
 
-def _save(fig: Figure, path: Path) -> None:
+def save_figure(fig: Figure, path: Path) -> None:
+    """Draw ``fig`` on an Agg canvas and write it to ``path`` (100 dpi)."""
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=100)
 
@@ -145,7 +146,7 @@ def plot_probes(runs: Sequence[Any], path: Path) -> None:
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize="small")
     axes[-1].set_xlabel("t (s)")
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray] | None], path: Path) -> None:
@@ -168,4 +169,4 @@ def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray
     axes[0].set_ylabel("t (s)")
     if image is not None:
         fig.colorbar(image, ax=list(axes), label="η (cm)")
-    _save(fig, path)
+    save_figure(fig, path)

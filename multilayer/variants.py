@@ -9,6 +9,7 @@ included, so a layer can change model together with its parameters).
 from __future__ import annotations
 
 import re
+import traceback
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -157,19 +158,19 @@ def make_variants(case_files: Sequence[Path], vary: str | None = None, overrides
 
 
 def load_variants(
-    variants: Sequence[Variant], registry: Registry
+    variants: Sequence[Variant], registry: Registry, snapshots: bool = True
 ) -> tuple[list[tuple[Variant, Any]], dict[str, list[Problem]]]:
     """Validate every variant: ((variant, case) pairs, problems by label).
 
-    A case that writes no snapshots (``output.every = 0``) gets
-    ``output.every = max(1, steps // 100)`` added to its overrides: the
-    space–time plot of η reads the wall snapshots.
+    With ``snapshots`` (compare's space–time plot of η reads the wall
+    snapshots), a case that writes none (``output.every = 0``) gets
+    ``output.every = max(1, steps // 100)`` added to its overrides.
     """
     loaded, invalid = [], {}
     for variant in variants:
         try:
             case = load_case(variant.case_file, variant.overrides, registry)
-            if case.output.every == 0:
+            if snapshots and case.output.every == 0:
                 variant = attrs.evolve(variant, overrides=(
                     *variant.overrides, f"output.every={max(1, case.time.steps // SNAPSHOTS)}"))
                 case = load_case(variant.case_file, variant.overrides, registry)
@@ -178,3 +179,33 @@ def load_variants(
             continue
         loaded.append((variant, case))
     return loaded, invalid
+
+
+def invalid_message(command: str, variants: Sequence[Variant], invalid: Mapping[str, Sequence[Problem]],
+                    noun: str = "variants") -> str:
+    """What :func:`load_variants` found wrong: a count, then each problem prefixed by its variant's label.
+
+    >>> v = [Variant("a", Path("m.toml")), Variant("b", Path("m.toml"))]
+    >>> print(invalid_message("compare", v, {"b": [Problem("time.dt", -1, "expected a number > 0")]}))
+    compare: 1 of 2 variants invalid
+    b: time.dt = -1: expected a number > 0
+    """
+    lines = [f"{command}: {len(invalid)} of {len(variants)} {noun} invalid"]
+    lines += [f"{v.label}: {problem}" for v in variants for problem in invalid.get(v.label, [])]
+    return "\n".join(lines)
+
+
+def run_variant(case: Any, folder: Path, registry: Registry) -> tuple[str, str]:
+    """Run a validated case into ``folder``: (status, reason).
+
+    A run that raises (a bug, not a failed run) is printed with its
+    traceback and returned as failed, so the other variants still run.
+    """
+    from multilayer.run import run_case
+
+    try:
+        result = run_case(case, folder, registry)
+    except Exception as exc:  # keep the other variants; the traceback says where
+        traceback.print_exc()
+        return "failed", f"{type(exc).__name__}: {exc}"
+    return result.status, result.reason
