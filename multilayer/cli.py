@@ -99,6 +99,9 @@ def _parser() -> argparse.ArgumentParser:
                        help="values of a key, e.g. time.dt=1e-4,5e-5 (repeatable: the grid is their product)")
     study.add_argument("--reference", type=Path, metavar="CASE",
                        help="run this case file as the reference (default: the finest run of the highest-order coupler)")
+    study.add_argument("--reference-set", dest="reference_sets", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a value of the reference only (after --set); without --reference the "
+                            "reference is CASE with these overrides, e.g. time.dt=1.5625e-6")
     study.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
     return parser
 
@@ -119,7 +122,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
             return study.main(args.case, args.out, args.couplers, args.varies, args.reference, args.jobs,
-                              args.overrides, registry, args.plugins, command)
+                              args.overrides, registry, args.plugins, command, args.reference_sets)
         from multilayer.casefile import load_case
 
         case = load_case(args.case, args.overrides, registry)

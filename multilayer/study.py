@@ -951,8 +951,14 @@ def _own_coupler(case_file: Path, overrides: Sequence[str], registry: Registry) 
 
 def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
          jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer study") -> int:
-    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input."""
+         command: str = "multilayer study", reference_sets: Sequence[str] = ()) -> int:
+    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
+
+    ``reference_sets`` are overrides of the reference alone; with them and no
+    ``reference`` file, the reference is ``case_file`` with those overrides.
+    """
+    if reference is None and reference_sets:
+        reference = case_file
     problems: list[Problem] = []
     if jobs < 1:
         problems.append(Problem("--jobs", jobs, "expected an integer >= 1 (runs at once)"))
@@ -982,7 +988,7 @@ def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str]
     planned = plan(case_file, choices, axes, overrides)
     variants = [p.variant for p in planned]
     if reference is not None:
-        variants.append(Variant(REFERENCE, Path(reference), tuple(overrides)))
+        variants.append(Variant(REFERENCE, Path(reference), (*overrides, *reference_sets)))
     _, invalid = load_variants(variants, registry, snapshots=False)
     if invalid:
         print(invalid_message("study", variants, invalid, "runs"), file=sys.stderr)

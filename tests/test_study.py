@@ -232,12 +232,12 @@ def test_a_coupler_name_and_a_coupler_table_are_the_same_override():
 
 def test_an_invalid_coupler_parameter_is_listed_per_run(tmp_path, capsys):
     out = tmp_path / "study"
-    code = main(study_argv(out, "--couplers", 'kinematic-splitting,{model="kinematic-splitting",beta=0.5}',
+    code = main(study_argv(out, "--couplers", 'kinematic-splitting,{model="kinematic-splitting",gamma=0.5}',
                            "--vary", "time.dt=1e-4,5e-5"))
     assert code == 2
     err = capsys.readouterr().err
     assert "study: 2 of 4 runs invalid" in err
-    assert "kinematic-splitting[beta=0.5]/time.dt=5e-5: coupler.beta = 0.5: unknown key" in err
+    assert "kinematic-splitting[gamma=0.5]/time.dt=5e-5: coupler.gamma = 0.5: unknown key" in err
     assert not out.exists()
 
 
@@ -317,3 +317,14 @@ def test_a_failed_run_is_reported_and_the_reference_case_runs_into_its_folder(tm
     assert "structure-only/loads.interface=-3e3: failed (wall collapse" in err
     assert "[3/3]" in err and "study: 1 run(s) failed" in err
     assert "| failed |" in (out / "study.md").read_text()
+
+
+def test_reference_set_makes_the_reference_from_the_case(tmp_path):
+    """--reference-set alone: the study's case with those overrides is the reference, run once."""
+    out = tmp_path / "refset"
+    code = main(["study", str(CASES / "membrane-mode.toml"), "--out", str(out), "--set", "time.end=2e-4",
+                 "--vary", "time.dt=1e-4,5e-5", "--reference-set", "time.dt=2.5e-5"])
+    assert code == 0
+    data = json.loads((out / "study.json").read_text())
+    assert data["reference"]["source"] == "--reference" and data["reference"]["dt"] == 2.5e-5
+    assert json.loads((out / "reference" / "summary.json").read_text())["steps"] == 8
