@@ -89,6 +89,14 @@ class Output:
 
 
 @attrs.frozen
+class Limits:
+    """When a run that has not crashed is stopped as failed anyway (``[solver]``)."""
+
+    max_displacement: float = 0.5  #: |η| on the lumen, as a fraction of R
+    energy_margin: float = 0.01  #: E − (E⁰ + work), as a fraction of max(|E⁰| + |work|, E)
+
+
+@attrs.frozen
 class Case:
     title: str
     geometry: Geometry
@@ -101,6 +109,7 @@ class Case:
     initial: Initial
     output: Output
     solver: str = "superlu"
+    limits: Limits = Limits()
     #: the resolved case (defaults filled) as plain JSON-able data
     resolved: Mapping[str, Any] = attrs.field(factory=dict, eq=False)
     #: sha256 of the canonical JSON of ``resolved``

@@ -23,6 +23,7 @@ from multilayer.case import (
     Geometry,
     Initial,
     LayerSpec,
+    Limits,
     Loads,
     MeshSpec,
     ModelSpec,
@@ -72,7 +73,13 @@ PROBE = (
     Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
 )
 OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
-SOLVER = (Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),)
+SOLVER = (
+    Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
+    Param("max_displacement", "", "R", default=0.5, gt=0.0,
+          doc="stop the run when |η| on the lumen exceeds this fraction of R"),
+    Param("energy_margin", default=0.01, gt=0.0,
+          doc="stop the run when the energy exceeds initial energy + work by this fraction of their scale"),
+)
 #: relative tolerance on end/dt being a whole number of steps
 STEPS_TOL = 1e-6
 
@@ -346,6 +353,7 @@ class _Validator:
             initial=initial,
             output=output,
             solver=solver["linear"],
+            limits=Limits(solver["max_displacement"], solver["energy_margin"]),
             resolved=resolved,
             digest=hashlib.sha256(canonical.encode()).hexdigest(),
         )

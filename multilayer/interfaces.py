@@ -287,6 +287,14 @@ class Fluid(ABC):
         """Solve ``system``; the result has ``state`` (the new state) and ``mean`` (the test-level x̄)."""
 
     @abstractmethod
+    def prescribe(self, system: Any, wall_velocity: np.ndarray) -> Any:
+        """``system`` with the wall's u_r prescribed to ``wall_velocity`` (a line vector; prescribed mode).
+
+        Only the Dirichlet data change: a Dirichlet–Neumann coupler iterates on
+        it without refactorizing.
+        """
+
+    @abstractmethod
     def advance(self, system: Any, mean: np.ndarray) -> Any:
         """The solution of ``system`` from its test-level unknowns x̄ solved elsewhere."""
 
@@ -361,6 +369,10 @@ class StepReport:
     work: Mapping[str, float] = attrs.field(factory=dict)
     dissipation: Mapping[str, float] = attrs.field(factory=dict)
     diagnostics: Mapping[str, float] = attrs.field(factory=dict)
+
+
+class SchemeFailure(Exception):
+    """A coupler cannot go on (e.g. sub-iterations that do not converge); the message says where and when."""
 
 
 class Coupler(ABC):

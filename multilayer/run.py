@@ -25,6 +25,7 @@ import numpy as np
 
 from multilayer import __version__
 from multilayer.case import Case
+from multilayer.interfaces import SchemeFailure
 from multilayer.registry import Registry
 from multilayer.results import ResultsFolder
 from multilayer import ledger
@@ -46,7 +47,10 @@ class RunResult:
 
 
 def check_state(setup: Setup, state: State, row: dict[str, float]) -> None:
-    """Stop on a non-finite value or a wall collapsing onto the axis (R + η ≤ 0)."""
+    """Stop on a non-finite value, a wall collapsing onto the axis (R + η ≤ 0) or one blown outward.
+
+    Outward means |η| on the lumen beyond ``[solver] max_displacement`` × R.
+    """
     t = state.t
     bad = [k for k, v in row.items() if not math.isfinite(v)]
     if bad:
@@ -60,6 +64,35 @@ def check_state(setup: Setup, state: State, row: dict[str, float]) -> None:
             i = int(np.argmin(gap))
             z = setup.wall.lines[0].z[i]
             raise RunFailed(f"wall collapse at t = {t:.6g} s, z = {z:.6g} cm: R + η = {gap[i]:.6g} cm ≤ 0")
+        limit = setup.case.limits.max_displacement * setup.case.geometry.radius
+        eta = gap - setup.case.geometry.radius
+        i = int(np.argmax(np.abs(eta)))
+        if abs(eta[i]) > limit:
+            how = "blow-out (outward)" if eta[i] > 0 else "collapse (inward)"
+            raise RunFailed(f"wall {how} at t = {t:.6g} s, z = {setup.wall.lines[0].z[i]:.6g} cm: "
+                            f"|η| = {abs(eta[i]):.6g} cm > {setup.case.limits.max_displacement:g} R "
+                            f"([solver] max_displacement)")
+
+
+class EnergyBound:
+    """Energy may never exceed the initial energy plus the work put in (a stable scheme's bound).
+
+    Checked after every step with the margin ``[solver] energy_margin``: beyond
+    it the scheme is unstable and the run stops, naming time and amounts.
+    """
+
+    def __init__(self, initial: float, margin: float):
+        self.initial, self.margin, self.work, self.scale = initial, margin, 0.0, abs(initial)
+
+    def check(self, t: float, terms: dict[str, float]) -> None:
+        self.work += sum(v for k, v in terms.items() if k.startswith("work."))
+        bound = self.initial + self.work
+        self.scale = max(self.scale, abs(self.initial) + abs(self.work), abs(terms["energy.total"]))
+        excess = terms["energy.total"] - bound
+        if excess > self.margin * self.scale:
+            raise RunFailed(f"energy grew beyond the work put in at t = {t:.6g} s: E = {terms['energy.total']:.6g} "
+                            f"> E⁰ + work = {bound:.6g} (by {excess / self.scale:.3g} of the energy scale; "
+                            f"[solver] energy_margin = {self.margin:g}): the scheme is unstable here")
 
 
 def _snapshot(setup: Setup, state: State, results: ResultsFolder) -> None:
@@ -83,6 +116,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
     status, reason, steps, max_rel, crash = "ok", "", 0, 0.0, ""
+    iterations: list[float] = []
     setup: Setup | None = None
     try:
         try:
@@ -91,6 +125,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             raise RunFailed(f"setting up the scene failed: {exc}") from exc
         previous = sum(setup.coupler.energy(setup, state).values())
+        bound = EnergyBound(previous, case.limits.energy_margin)
         probes = setup.probe_rows(case.output.probes)
         every = case.output.every
         series = None
@@ -102,6 +137,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
             terms = ledger.close(report.stored, previous, report.work, report.dissipation)
             previous = terms["energy.total"]
             check_state(setup, state, {**terms, **report.diagnostics})
+            iterations.append(report.diagnostics.get("iterations", math.nan))
             t_out = time.perf_counter()
             row = {"step": state.n, "t": state.t, **terms, **report.diagnostics,
                    **setup.probe_values(probes, state)}
@@ -113,7 +149,8 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
             if every and state.n % every == 0:
                 _snapshot(setup, state, results)
             setup.timings["output"] += time.perf_counter() - t_out
-    except RunFailed as exc:
+            bound.check(state.t, terms)  # after the row is written: the row that breaks the bound is kept
+    except (RunFailed, SchemeFailure) as exc:
         status, reason = "failed", str(exc)
     except (FloatingPointError, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
         status, reason = "failed", f"{type(exc).__name__} after step {steps}: {exc}"
@@ -137,6 +174,7 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
         "timings": _timings(setup),
         "factorizations": _factorizations(setup),
         "energy": {"max_relative_residual": max_rel},
+        **_iterations(iterations),
     }
     results.write_summary(summary)
     return RunResult(status, reason, Path(out), steps, max_rel)
@@ -152,6 +190,14 @@ def _plugin_versions(case: Case, registry: Registry) -> dict[str, dict[str, str]
         if reg is not None:
             out[spec.path] = {"name": spec.model, "package": reg.package, "version": reg.version}
     return out
+
+
+def _iterations(per_step: list[float]) -> dict[str, dict[str, float]]:
+    """Sub-iterations per step, for a coupler that reports them (``iterations`` column)."""
+    done = [n for n in per_step if not math.isnan(n)]
+    if not done:
+        return {}
+    return {"iterations": {"total": int(sum(done)), "mean": sum(done) / len(done), "max": int(max(done))}}
 
 
 def _scheme(setup: Setup | None) -> dict[str, object]:

@@ -148,6 +148,9 @@ class ChannelFluid(Fluid):
     def solve(self, system: FluidSystem) -> Solution:
         return self.discrete.solve(system)
 
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
+        return self.discrete.prescribe(system, wall_velocity)
+
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
         return self.discrete.advance(system, mean)
 

@@ -159,6 +159,7 @@ class FluidStep:
         self._static: dict[float, tuple] = {}  # rigid wall: kernels that depend on Δt/inertia only
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
+        self._last: tuple[np.ndarray, Factorized] | None = None  # the latest matrix and its factors
 
     @property
     def constant_matrix(self) -> bool:
@@ -206,12 +207,14 @@ class FluidStep:
         if interface is not None and (interface.matrix.shape != (nline, nline) or interface.rhs.shape != (nline,)):
             raise ValueError(f"the interface terms must be a {nline} × {nline} matrix and a vector on the line")
         if self.wall == "prescribed":
-            ends = list(self.channel.ends)
-            c = domain.velocity
-            if np.max(np.abs(c[ends])) > 1e-12 * max(np.max(np.abs(c)), 1e-300):
-                raise ValueError("a prescribed wall motion must vanish at z = 0 and z = L (u_r = 0 there)")
+            self._check_ends(domain.velocity)
         if not history:
             raise ValueError("the fluid step needs the state at tⁿ")
+
+    def _check_ends(self, c: np.ndarray) -> None:
+        ends = list(self.channel.ends)
+        if np.max(np.abs(c[ends])) > 1e-12 * max(np.max(np.abs(c)), 1e-300):
+            raise ValueError("a prescribed wall motion must vanish at z = 0 and z = L (u_r = 0 there)")
 
     def system(self, history: Sequence[FluidState], domain: Domain, scheme: TimeScheme, dt: float,
                p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> FluidSystem:
@@ -269,14 +272,31 @@ class FluidStep:
         self.assembly_s += time.perf_counter() - t0
         key = (system.scheme.inertia * self.density / system.dt,)
         lu = self._constant[key][1] if self.constant_matrix and key in self._constant else None
+        if lu is None and self._last is not None and self._last[0] is system.data:
+            lu = self._last[1]  # the same matrix again (sub-iterations change only the wall's data)
         if lu is None:
             lu = factorize(self._block_ff.matrix(system.data), self.stats, self.solver)
+            self._last = (system.data, lu)
             if self.constant_matrix:
                 self._constant[key] = (system.own, lu)
         x = np.zeros(self.channel.ndofs)
         x[self.fixed] = system.fixed_values
         x[self.free] = lu.solve(rhs)
         return self.advance(system, x)
+
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
+        """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode).
+
+        The matrix is shared, so :meth:`solve` reuses its factorization: a
+        sub-iterated coupler pays one factorization per step.
+        """
+        if self.wall != "prescribed":
+            raise ValueError(f"only a prescribed wall takes a wall velocity, not {self.wall!r}")
+        self._check_ends(wall_velocity)
+        values = np.zeros(self.channel.ndofs)
+        values[: self.channel.nu] = self.channel.prolongation @ wall_velocity
+        values[self.channel.normal_r] = 0.0
+        return attrs.evolve(system, fixed_values=values[self.fixed])
 
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
         """The new state from the solved x̄ = (ū, p̄): u^{n+1} from the scheme, v its wall trace."""
