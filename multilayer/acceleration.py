@@ -12,7 +12,10 @@ the residual r = x̃ − x.  Plain iteration diverges when the wall is light
   differences of the last ``reuse`` time steps (Degroote, Bathe & Vierendeels
   2009; what preCICE and CoCoNuT call IQN-ILS).
 
-Both take :meth:`start` at each time step and :meth:`next` per iteration.
+Both take :meth:`start` at each time step and :meth:`next` per iteration;
+what they carry from one time step to the next is :meth:`memory`, a value
+a coupler keeps in its state (so a resumed run goes on exactly) and hands
+back with :meth:`recall`.
 
 >>> import numpy as np
 >>> A = np.array([[-3.0, 0.5], [0.5, -1.0]]); b = np.array([1.0, 2.0])
@@ -48,6 +51,14 @@ class Aitken:
         self.omega0, self.omega_max = omega0, omega_max
         self.omega = omega0
         self._r_old: np.ndarray | None = None
+
+    def memory(self) -> float:
+        """What the next time step starts from: the last ω."""
+        return self.omega
+
+    def recall(self, memory: float | None) -> None:
+        if memory is not None:
+            self.omega = float(memory)
 
     def start(self) -> None:
         """A new time step: forget the last residual; start from the last step's ω (at most ω₀ in size)."""
@@ -85,6 +96,19 @@ class IQNILS:
         self._V: list[np.ndarray] = []
         self._W: list[np.ndarray] = []
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+
+    def memory(self) -> tuple:
+        """The differences of the steps to be reused, with this step's (as :meth:`start` will file them)."""
+        past = list(self._past)
+        if self._V and self.reuse > 0:
+            past = (past + [(self._V, self._W)])[-self.reuse:]
+        return tuple((tuple(V), tuple(W)) for V, W in past)
+
+    def recall(self, memory: tuple | None) -> None:
+        if memory is not None:
+            self._past.clear()
+            self._past.extend((list(V), list(W)) for V, W in memory)
+            self._V, self._W, self._last = [], [], None
 
     def start(self) -> None:
         """A new time step: file this step's differences among the reused ones."""

@@ -114,3 +114,5 @@ class Case:
     resolved: Mapping[str, Any] = attrs.field(factory=dict, eq=False)
     #: sha256 of the canonical JSON of ``resolved``
     digest: str = ""
+    #: the folder relative file names of the case (table loads) are read from
+    base_dir: str = attrs.field(default=".", eq=False)

@@ -356,6 +356,7 @@ class _Validator:
             limits=Limits(solver["max_displacement"], solver["energy_margin"]),
             resolved=resolved,
             digest=hashlib.sha256(canonical.encode()).hexdigest(),
+            base_dir=str(self.base_dir.resolve()),
         )
 
     def check_steps(self, time: Mapping[str, float]) -> None:

@@ -27,6 +27,7 @@ from multilayer.problems import CaseError
 from multilayer.registry import Registry, RegistryError
 
 OK, FAILED, INVALID = 0, 1, 2
+INTERRUPTED = 130  #: 128 + SIGINT, as a shell reports an interrupted command
 
 
 def import_plugin(spec: str) -> ModuleType:
@@ -55,6 +56,15 @@ def load_registry(plugins: Sequence[str] = ()) -> Registry:
     return Registry.load(extra=[import_plugin(p) for p in plugins])
 
 
+def run_options(p: argparse.ArgumentParser, checkpoints: bool = True) -> None:
+    """The options of commands that run a case."""
+    if checkpoints:
+        p.add_argument("--checkpoint-every", type=int, default=0, metavar="N",
+                       help="write the whole state every N steps (and when interrupted), for 'multilayer resume'")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary at the end")
+    p.add_argument("--no-plots", action="store_true", help="do not draw the run's figures at the end")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="multilayer", description="Fluid–multi-layered-structure interaction from TOML case files."
@@ -73,6 +83,17 @@ def _parser() -> argparse.ArgumentParser:
     run = commands.add_parser("run", help="run a case, writing results to a folder")
     common(run)
     run.add_argument("--out", type=Path, required=True, help="results folder (created)")
+    run_options(run)
+    resume = commands.add_parser("resume", help="continue an interrupted or finished run from its checkpoint")
+    resume.add_argument("out", type=Path, metavar="DIR", help="the results folder of the run")
+    resume.add_argument("--until", type=float, metavar="T", help="run to this time (s) instead of the case's end")
+    run_options(resume, checkpoints=False)
+    resume.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
+                        help="checkpoint every N steps (default: as the run did)")
+    common(resume, case=False)
+    plot = commands.add_parser("plot", help="draw the figures of a results folder")
+    plot.add_argument("out", type=Path, metavar="DIR", help="the results folder of a run")
+    common(plot, case=False)
     common(commands.add_parser("validate", help="check a case file and report every problem"))
     plugins = commands.add_parser("plugins", help="list the available models, or one model's parameters")
     plugins.add_argument("name", nargs="?", help="show the parameters of this model")
@@ -113,6 +134,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         registry = load_registry(args.plugins)
         if args.command == "plugins":
             return _plugins(registry, args.name)
+        if args.command == "plot":
+            return _plot(args.out)
+        if args.command == "resume":
+            return _run(None, args.out, registry, args)
         if args.command == "compare":
             from multilayer import compare
 
@@ -136,25 +161,72 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "validate":
         print(_describe(args.case, case))
         return OK
-    return _run(case, args.out, registry)
+    if args.checkpoint_every < 0:
+        print(f"--checkpoint-every = {args.checkpoint_every}: expected a whole number of steps >= 0", file=sys.stderr)
+        return INVALID
+    return _run(case, args.out, registry, args)
 
 
-def _run(case: object, out: Path, registry: Registry) -> int:
-    from multilayer.run import run_case
+def _run(case: object | None, out: Path, registry: Registry, args: argparse.Namespace) -> int:
+    """``run`` (a case) or ``resume`` (``case`` None: the folder's checkpoint)."""
+    import time
+
+    from multilayer.checkpoint import CheckpointError
+    from multilayer.progress import ProgressBar, summary
+    from multilayer.results import ResultsError
+    from multilayer.run import resume_run, run_case
 
     if out.exists() and not out.is_dir():
         print(f"--out {out} is a file, not a folder", file=sys.stderr)
         return INVALID
+    t0 = time.perf_counter()
+    bar = None
     try:
-        result = run_case(case, out, registry)
+        if case is not None:
+            bar = ProgressBar(case.time.steps, case.time.end, enabled=None if not args.quiet else False)
+            result = run_case(case, out, registry, checkpoint_every=args.checkpoint_every, progress=bar)
+        else:
+            from multilayer.checkpoint import load
+
+            saved = load(out, registry, args.until)
+            bar = ProgressBar(saved.case.time.steps, saved.case.time.end, saved.tally.steps,
+                              enabled=None if not args.quiet else False)
+            result = resume_run(out, args.until, registry, checkpoint_every=args.checkpoint_every, progress=bar)
+    except (ResultsError, CheckpointError) as exc:
+        print(f"{'run' if case is not None else 'resume'}: {exc}", file=sys.stderr)
+        return INVALID
     except Exception:  # a bug, not a user mistake: the traceback helps
         traceback.print_exc()
         print(f"run failed; partial results in {out}", file=sys.stderr)
         return FAILED
+    finally:
+        if bar is not None:
+            bar.close()
+    if not args.no_plots and result.steps:
+        _plot(out, quiet=True)
+    if not args.quiet:
+        print(summary(result, time.perf_counter() - t0, out, checkpoint=(out / "checkpoint.pkl").is_file()))
+    if result.status == "interrupted":
+        return INTERRUPTED
     if result.status != "ok":
         print(f"run failed: {result.reason}", file=sys.stderr)
         return FAILED
-    print(f"done: results in {out}")
+    return OK
+
+
+def _plot(out: Path, quiet: bool = False) -> int:
+    from multilayer.plots import plot_run
+
+    if not (out / "summary.json").is_file():
+        print(f"plot: {out} is not a results folder (no summary.json)", file=sys.stderr)
+        return INVALID
+    try:
+        written = plot_run(out)
+    except Exception as exc:  # a figure is a by-product: say so, keep the run's status
+        print(f"plot: the figures of {out} could not be drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
+        return FAILED
+    if not quiet:
+        print("\n".join(str(p) for p in written) or f"plot: nothing to draw in {out}")
     return OK
 
 

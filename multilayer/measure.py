@@ -99,12 +99,21 @@ def without_nan(value: Any) -> Any:
 
 
 def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """η(z, t) on the lumen line from the ``<part>_*.vtu`` snapshots listed in ``<part>.pvd``.
+    """η(z, t) on the lumen line: from ``eta_lumen.csv`` (every step), else the ``<part>_*.vtu`` snapshots.
 
     Returns (z, t, eta) with ``eta[i, j]`` = η(t[i], z[j]): the radial
-    displacement of the snapshot points at r = R (reference coordinates),
-    sorted by z.  None when there are no snapshots.
+    displacement of the lumen's vertices (reference coordinates), sorted by
+    z.  None when the run wrote neither.
     """
+    table = folder / "eta_lumen.csv"
+    if table.is_file():
+        series = read_series(table)
+        columns = [c for c in series if c.startswith("z=")]
+        if columns and len(series["t"]):
+            z = np.array([float(c[2:]) for c in columns])
+            order = np.argsort(z, kind="stable")
+            eta = np.column_stack([series[c] for c in columns])[:, order]
+            return z[order], series["t"], eta
     pvd = folder / f"{part}.pvd"
     if not pvd.is_file():
         return None

@@ -2,22 +2,30 @@
 
 The results folder is a contract other tools rely on:
 
-* ``summary.json`` — status (``ok`` / ``failed`` with a ``reason``), the
-  resolved case and its hash, plugin versions, DOF counts, steps, wall time,
-  per-phase timings and the energy ledger's largest relative residual;
+* ``summary.json`` — status (``ok``, ``failed`` with a ``reason``, or
+  ``interrupted``), the resolved case and its hash, plugin versions, DOF
+  counts, steps, wall time, per-phase timings, the energy ledger's largest
+  relative residual, sub-iterations when the coupler reports them;
 * ``series.csv`` — one row per step: ``t``, every ledger term, every probe;
-* ``<part>_NNNNNN.vtu`` + ``<part>.pvd`` — field snapshots for ParaView.
+* ``eta_lumen.csv`` — η on the lumen line at every vertex, every step (when there is a wall);
+* ``<part>_NNNNNN.vtu`` + ``<part>.pvd`` — field snapshots for ParaView;
+* ``checkpoint.pkl`` — the whole state every ``checkpoint_every`` steps, for :func:`resume_run`.
 
-A run that fails (a non-finite value, a collapsing wall) stops cleanly and
-keeps every row and snapshot written so far.
+A run that fails (a non-finite value, a collapsing wall, energy beyond
+the work put in) or is interrupted (SIGINT, SIGTERM) stops cleanly and keeps
+every row and snapshot written so far.
 """
 
 from __future__ import annotations
 
 import math
+import signal
 import sys
+import threading
 import time
 import traceback
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import attrs
@@ -27,23 +35,14 @@ from multilayer import __version__
 from multilayer.case import Case
 from multilayer.interfaces import SchemeFailure
 from multilayer.registry import Registry
+from multilayer import checkpoint, ledger
 from multilayer.results import ResultsFolder
-from multilayer import ledger
 from multilayer.setup import Setup
 from multilayer.state import State
 
 
 class RunFailed(Exception):
     """The run cannot go on; the message says where and when."""
-
-
-@attrs.frozen
-class RunResult:
-    status: str
-    reason: str = ""
-    out: Path | None = None
-    steps: int = 0
-    max_relative_residual: float = 0.0
 
 
 def check_state(setup: Setup, state: State, row: dict[str, float]) -> None:
@@ -104,60 +103,158 @@ def _snapshot(setup: Setup, state: State, results: ResultsFolder) -> None:
         results.snapshot("fluid", pts, cells, data, state.t, state.n)
 
 
-def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> RunResult:
+@attrs.frozen
+class RunResult:
+    status: str
+    reason: str = ""
+    out: Path | None = None
+    steps: int = 0
+    max_relative_residual: float = 0.0
+    t: float = 0.0
+    peaks: dict = attrs.field(factory=dict)  #: max |value| of every η probe
+
+
+@attrs.define
+class Tally:
+    """What the loop carries from step to step besides the state: the ledger and the counts.
+
+    It is part of a checkpoint, so a resumed run goes on with the same numbers.
+    """
+
+    previous: float  #: the stored energy before the next step
+    bound: EnergyBound
+    steps: int = 0
+    t: float = 0.0
+    max_rel: float = 0.0
+    iterations: list[float] = attrs.field(factory=list)
+    peaks: dict[str, float] = attrs.field(factory=dict)
+    wall_time_s: float = 0.0  #: wall time of earlier sessions of a resumed run
+
+
+class Interrupted(Exception):
+    """SIGINT or SIGTERM: the run stops after the current step."""
+
+
+@contextmanager
+def interruptible() -> Iterator[Callable[[], str | None]]:
+    """Catch SIGINT and SIGTERM while a run goes on; yields a function naming the signal caught (or None).
+
+    A first signal lets the current step finish; a second SIGINT abandons it.
+    Handlers are installed only in the main thread (elsewhere nothing changes).
+    """
+    caught: list[str] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+
+    def handler(signum, frame):
+        name = signal.Signals(signum).name
+        if caught and signum == signal.SIGINT:
+            raise Interrupted(name)
+        caught.append(name)
+
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield lambda: caught[0] if caught else None
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)
+
+
+def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, checkpoint_every: int = 0,
+             progress: Callable[[Tally, dict], None] | None = None) -> RunResult:
     """Run ``case`` and write its results folder ``out``.
 
     The coupler advances states; this loop closes the energy ledger of each
-    step from the terms the coupler reports (SCHEME §4), evaluates the
-    probes and writes rows and snapshots.  Returns the :class:`RunResult`;
-    the same status is in ``summary.json``.
+    step from the terms the coupler reports ([theory](docs/theory.md) §7),
+    evaluates the probes and writes rows and snapshots; with
+    ``checkpoint_every`` > 0 it writes ``checkpoint.pkl`` every so many steps
+    and when interrupted.  ``progress(tally, row)`` is called after every
+    step.  Returns the :class:`RunResult`; the same status is in ``summary.json``.
     """
-    wall_t0 = time.perf_counter()
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
-    status, reason, steps, max_rel, crash = "ok", "", 0, 0.0, ""
-    iterations: list[float] = []
+    return _run(case, results, registry, None, checkpoint_every, progress)
+
+
+def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
+               checkpoint_every: int | None = None,
+               progress: Callable[[Tally, dict], None] | None = None) -> RunResult:
+    """Continue the run of the results folder ``out`` from its ``checkpoint.pkl`` (to ``until`` s if given).
+
+    Rows and snapshots written after the checkpoint are dropped first, so a
+    run resumed from step n writes the same files as one never stopped.
+    Raises :class:`checkpoint.CheckpointError` when there is no usable
+    checkpoint, or the plugins or the case differ from the checkpoint's.
+    """
+    registry = registry or Registry.load()
+    saved = checkpoint.load(Path(out), registry, until)
+    results = ResultsFolder(Path(out), fresh=False)
+    every = saved.checkpoint_every if checkpoint_every is None else checkpoint_every
+    return _run(saved.case, results, registry, saved, every, progress)
+
+
+def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoint.Checkpoint | None,
+         checkpoint_every: int, progress) -> RunResult:
+    wall_t0 = time.perf_counter()
+    status, reason, crash = "ok", "", ""
     setup: Setup | None = None
+    tally: Tally | None = saved.tally if saved is not None else None
+    resumed_from = saved.tally.steps if saved is not None else None
     try:
-        try:
-            setup = Setup.build(case, registry)
-            state = setup.coupler.initial_state(setup)
-        except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
-            raise RunFailed(f"setting up the scene failed: {exc}") from exc
-        previous = sum(setup.coupler.energy(setup, state).values())
-        bound = EnergyBound(previous, case.limits.energy_margin)
-        probes = setup.probe_rows(case.output.probes)
-        every = case.output.every
-        series = None
-        t_out = time.perf_counter()
-        if every:
-            _snapshot(setup, state, results)
-        setup.timings["output"] += time.perf_counter() - t_out
-        for state, report in setup.coupler.evolve(setup, state):
-            terms = ledger.close(report.stored, previous, report.work, report.dissipation)
-            previous = terms["energy.total"]
-            check_state(setup, state, {**terms, **report.diagnostics})
-            iterations.append(report.diagnostics.get("iterations", math.nan))
+        with interruptible() as interrupted:
+            try:
+                setup = Setup.build(case, registry)
+                state = saved.state if saved is not None else setup.coupler.initial_state(setup)
+            except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+                raise RunFailed(f"setting up the scene failed: {exc}") from exc
+            if tally is None:
+                energy = sum(setup.coupler.energy(setup, state).values())
+                tally = Tally(energy, EnergyBound(energy, case.limits.energy_margin))
+            probes = setup.probe_rows(case.output.probes)
+            eta_probes = [p.name for p in case.output.probes if p.quantity == "eta"]
+            every = case.output.every
+            writers = Writers(results, setup, saved)
             t_out = time.perf_counter()
-            row = {"step": state.n, "t": state.t, **terms, **report.diagnostics,
-                   **setup.probe_values(probes, state)}
-            if series is None:
-                series = results.series(list(row))
-            series.append(row)
-            steps = state.n
-            max_rel = max(max_rel, terms["energy.relative_residual"])
-            if every and state.n % every == 0:
+            if every and saved is None:
                 _snapshot(setup, state, results)
             setup.timings["output"] += time.perf_counter() - t_out
-            bound.check(state.t, terms)  # after the row is written: the row that breaks the bound is kept
+            for state, report in setup.coupler.evolve(setup, state):
+                terms = ledger.close(report.stored, tally.previous, report.work, report.dissipation)
+                tally.previous = terms["energy.total"]
+                check_state(setup, state, {**terms, **report.diagnostics})
+                tally.iterations.append(report.diagnostics.get("iterations", math.nan))
+                t_out = time.perf_counter()
+                row = {"step": state.n, "t": state.t, **terms, **report.diagnostics,
+                       **setup.probe_values(probes, state)}
+                writers.write(row, state)
+                tally.steps, tally.t = state.n, state.t
+                tally.max_rel = max(tally.max_rel, terms["energy.relative_residual"])
+                for name in eta_probes:
+                    tally.peaks[name] = max(tally.peaks.get(name, 0.0), abs(row[name]))
+                if every and state.n % every == 0:
+                    _snapshot(setup, state, results)
+                setup.timings["output"] += time.perf_counter() - t_out
+                tally.bound.check(state.t, terms)  # after the row is written: the row that breaks it is kept
+                if progress is not None:
+                    progress(tally, row)
+                if checkpoint_every and (state.n % checkpoint_every == 0 or interrupted()):
+                    checkpoint.save(results.path, case, registry, state, tally, results.snapshots, checkpoint_every,
+                                    time.perf_counter() - wall_t0)
+                if interrupted():
+                    raise Interrupted(interrupted())
+    except Interrupted as exc:
+        status = "interrupted"
+        reason = f"interrupted by {exc} after step {tally.steps if tally else 0} (t = {tally.t if tally else 0:.6g} s)"
     except (RunFailed, SchemeFailure) as exc:
         status, reason = "failed", str(exc)
     except (FloatingPointError, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
-        status, reason = "failed", f"{type(exc).__name__} after step {steps}: {exc}"
+        status, reason = "failed", f"{type(exc).__name__} after step {tally.steps if tally else 0}: {exc}"
     except Exception as exc:  # a bug: still keep the results and say where
-        status, reason = "failed", f"{type(exc).__name__} after step {steps}: {exc}"
+        status, reason = "failed", f"{type(exc).__name__} after step {tally.steps if tally else 0}: {exc}"
         crash = traceback.format_exc()
         print(crash, file=sys.stderr)
+    tally = tally or Tally(0.0, EnergyBound(0.0, case.limits.energy_margin))
     summary = {
         "status": status,
         "reason": reason,
@@ -167,17 +264,47 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None) -> R
         "case_hash": case.digest,
         "plugins": _plugin_versions(case, registry),
         "dofs": setup.dof_counts() if setup else {},
-        "steps": steps,
+        "steps": tally.steps,
+        "t": tally.t,
         "dt": case.time.dt,
         "scheme": _scheme(setup),
-        "wall_time_s": time.perf_counter() - wall_t0,
+        "wall_time_s": tally.wall_time_s + time.perf_counter() - wall_t0,
         "timings": _timings(setup),
         "factorizations": _factorizations(setup),
-        "energy": {"max_relative_residual": max_rel},
-        **_iterations(iterations),
+        "energy": {"max_relative_residual": tally.max_rel},
+        **_iterations(tally.iterations),
+        **({"resumed_from": resumed_from} if saved is not None else {}),
+        **({"checkpoint": {"every": checkpoint_every, "file": "checkpoint.pkl"}} if checkpoint_every else {}),
     }
     results.write_summary(summary)
-    return RunResult(status, reason, Path(out), steps, max_rel)
+    results.release()
+    return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks))
+
+
+class Writers:
+    """The per-step files: ``series.csv`` and, with a wall, ``eta_lumen.csv`` (η at the lumen's vertices)."""
+
+    def __init__(self, results: ResultsFolder, setup: Setup, saved: checkpoint.Checkpoint | None):
+        self.results, self.setup = results, setup
+        self.keep = saved.tally.steps if saved is not None else None
+        if saved is not None:
+            results.keep_until(self.keep, saved.snapshots)
+        self.series = None
+        self.eta = None
+        if setup.wall is not None:
+            line = setup.wall.lines[0]
+            self._vertices = line.basis.nodal_dofs[0]
+            z = line.z[self._vertices]
+            self.eta = results.series(["step", "t", *(f"z={v!r}" for v in map(float, z))], "eta_lumen.csv",
+                                      self.keep)
+
+    def write(self, row: dict, state: State) -> None:
+        if self.series is None:
+            self.series = self.results.series(list(row), keep_until=self.keep)
+        self.series.append(row)
+        if self.eta is not None:
+            eta = self.setup.eta(state, 0)[self._vertices]
+            self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
 
 
 def _plugin_versions(case: Case, registry: Registry) -> dict[str, dict[str, str]]:

@@ -70,6 +70,8 @@ class DirichletNeumann(Coupler):
         structure = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver)
         ends = wall.lines[LUMEN].end_dofs
         accelerate = self.accelerator()
+        if accelerate is not None:
+            accelerate.recall(state.extra.get("acceleration"))
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.levels - 1)
@@ -101,8 +103,9 @@ class DirichletNeumann(Coupler):
                 x[ends] = 0.0
             eta_new = P.T @ w.wall.d
             terms = fluid.identity(prescribed, solution, etas[0], eta_new)
+            extra = {"acceleration": accelerate.memory()} if accelerate is not None else {}
             state = state.then(S.levels - 1, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
-                               v=P.T @ w.wall.V, eta=eta_new)
+                               v=P.T @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             work = {k: v for k, v in {**w.work, **work_f}.items() if k not in ("work.fluid", "work.wall")}
             work["work.interface"] = work_f["work.wall"] + w.work["work.fluid"]

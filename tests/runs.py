@@ -11,7 +11,7 @@ CASES = Path(__file__).parents[1] / "cases"
 
 def run_cli(case: str, out: Path, *sets: str) -> tuple[int, dict, list[dict[str, str]]]:
     """``multilayer run cases/<case>.toml --out OUT --set ...``: (exit code, summary.json, series.csv rows)."""
-    argv = ["run", str(CASES / f"{case}.toml"), "--out", str(out)]
+    argv = ["run", str(CASES / f"{case}.toml"), "--out", str(out), "--no-plots", "--quiet"]
     for s in sets:
         argv += ["--set", s]
     code = main(argv)

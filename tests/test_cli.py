@@ -146,13 +146,15 @@ def test_run_of_an_invalid_case_writes_nothing(tmp_path, capsys):
 
 def test_failed_run_exits_1(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(multilayer.run, "run_case",
-                        lambda case, out, registry: types.SimpleNamespace(status="failed", reason="wall collapse"))
+                        lambda case, out, registry, **kw: types.SimpleNamespace(status="failed", reason="wall collapse",
+                                                                                steps=0, t=0.0, peaks={},
+                                                                                max_relative_residual=0.0))
     assert main(["run", str(write(tmp_path, SHELL)), "--out", str(tmp_path / "o")]) == 1
     assert "run failed: wall collapse" in capsys.readouterr().err
 
 
 def test_crashed_run_exits_1(tmp_path, monkeypatch, capsys):
-    def crash(case, out, registry):
+    def crash(case, out, registry, **kw):
         raise ZeroDivisionError("boom")
 
     monkeypatch.setattr(multilayer.run, "run_case", crash)
