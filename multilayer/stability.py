@@ -430,7 +430,7 @@ def panels(data: Mapping[str, Any]) -> list[tuple[str, dict[tuple[str, float], d
         groups.setdefault(tuple(row["values"].items()), {})[row["coupler"], row["ratio"]] = row
     out = []
     for values, cells in groups.items():
-        dts = {r["dt"] for r in cells.values()}
+        dts = {r["dt"] for r in cells.values() if r["dt"] is not None}  # None: a run without summary.json
         parts = [f"Δt = {_num(dts.pop())} s"] if len(dts) == 1 else []
         parts += [f"{k} = {v}" for k, v in values if k != "time.dt"]
         out.append((", ".join(parts) or "all runs", cells))
