@@ -1,4 +1,4 @@
-"""The ``multilayer`` command: run, validate, plugins, compare, study.
+"""The ``multilayer`` command: run, validate, plugins, compare, study, stability.
 
 Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
 (the problems on stderr, one per line, without a traceback).
@@ -8,6 +8,7 @@ Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
     multilayer plugins --plugin my_layer.py
     multilayer compare cases/membrane-mode.toml --vary layers[0].tension=2e4,8e4 --out results/tension
     multilayer study cases/pulse-koiter.toml --vary time.dt=1e-4,5e-5,2.5e-5 --out results/dt-study
+    multilayer stability cases/pulse-koiter.toml --couplers kinematic-splitting,monolithic --out results/stability
 """
 
 from __future__ import annotations
@@ -124,6 +125,23 @@ def _parser() -> argparse.ArgumentParser:
                        help="override a value of the reference only (after --set); without --reference the "
                             "reference is CASE with these overrides, e.g. time.dt=1.5625e-6")
     study.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
+
+    # -- stability: multilayer.stability ----------------------------------------
+    stability = commands.add_parser("stability", help="stability map: couplers x wall-to-fluid mass ratio "
+                                                      "rho1*h/(rho_f*R) (x time steps)")
+    common(stability)
+    stability.add_argument("--out", type=Path, required=True,
+                           help="map folder; each run goes into OUT/<coupler>/ratio=<r>/<key=value>/")
+    stability.add_argument("--couplers", metavar="A,B,...",
+                           help="coupler names or inline tables replacing [coupler] (default: the case's own)")
+    stability.add_argument("--ratios", metavar="R1,R2,...",
+                           help="values of rho1*h/(rho_f*R), set through the thin layer's density "
+                                "(default: 1,0.1,0.01,0.001)")
+    stability.add_argument("--layer", type=int, default=0, metavar="L",
+                           help="the thin layer whose density sets the ratio (default: 0)")
+    stability.add_argument("--vary", dest="varies", action="append", default=[], metavar="KEY=A,B[,C...]",
+                           help="values of a key, e.g. time.dt=1e-4,1e-5 (repeatable: one map per combination)")
+    stability.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
     return parser
 
 
@@ -148,6 +166,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
             return study.main(args.case, args.out, args.couplers, args.varies, args.reference, args.jobs,
                               args.overrides, registry, args.plugins, command, args.reference_sets)
+        if args.command == "stability":
+            from multilayer import stability
+
+            command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
+            return stability.main(args.case, args.out, args.couplers, args.ratios, args.varies, args.layer,
+                                  args.jobs, args.overrides, registry, args.plugins, command)
         from multilayer.casefile import load_case
 
         case = load_case(args.case, args.overrides, registry)

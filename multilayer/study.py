@@ -170,6 +170,29 @@ def parse_varies(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
     return out
 
 
+@attrs.frozen
+class Setting:
+    """One value of one axis of the grid: ``key=value`` in labels and folders, and the override it applies.
+
+    For ``--vary`` the override is ``key=value`` itself; another command
+    may name a value by one quantity and realise it by another (the
+    stability map's ``ratio=0.01`` sets ``layers[0].density``).
+    """
+
+    key: str
+    value: str
+    override: str
+
+
+def vary_axis(key: str, values: Sequence[str]) -> list[Setting]:
+    """The settings of ``--vary KEY=A,B,...``: each value applied as ``KEY=value``.
+
+    >>> vary_axis("time.dt", ["1e-4", "5e-5"])[1]
+    Setting(key='time.dt', value='5e-5', override='time.dt=5e-5')
+    """
+    return [Setting(key, v, f"{key}={v}") for v in values]
+
+
 def plan(case_file: Path, couplers: Sequence[CouplerChoice], varies: Sequence[tuple[str, Sequence[str]]],
          overrides: Sequence[str] = ()) -> list[Planned]:
     """The grid: every coupler × every combination of the varied values.
@@ -184,15 +207,48 @@ def plan(case_file: Path, couplers: Sequence[CouplerChoice], varies: Sequence[tu
     >>> runs[1].variant.overrides
     ('mesh.nz=12', 'coupler=a', 'time.dt=5e-5')
     """
+    return plan_grid(case_file, couplers, [vary_axis(key, values) for key, values in varies], overrides)
+
+
+def plan_grid(case_file: Path, couplers: Sequence[CouplerChoice], axes: Sequence[Sequence[Setting]],
+              overrides: Sequence[str] = ()) -> list[Planned]:
+    """Every coupler × every combination of one setting per axis.
+
+    Parameters
+    ----------
+    case_file : Path
+        The case every run starts from.
+    couplers : sequence of CouplerChoice
+        The first level of the grid (folders ``<coupler>/``).
+    axes : sequence of sequences of Setting
+        The next levels, in order (folders ``<key=value>/``).
+    overrides : sequence of str
+        ``--set``, applied first; then the coupler's, then each axis's.
+
+    Returns
+    -------
+    list of Planned
+        Coupler-major, then the axes in order.  The folder ``reference``
+        is kept free for ``--reference``.
+
+    Examples
+    --------
+    >>> ratio = [Setting("ratio", "1", "layers[0].density=5.0")]
+    >>> run, = plan_grid(Path("c.toml"), [CouplerChoice("a", "a", "coupler=a")],
+    ...                  [ratio, vary_axis("time.dt", ["1e-4"])])
+    >>> run.folder, run.values
+    ('a/ratio=1/time.dt=1e-4', (('ratio', '1'), ('time.dt', '1e-4')))
+    >>> run.variant.overrides
+    ('coupler=a', 'layers[0].density=5.0', 'time.dt=1e-4')
+    """
     coupler_folders = unique([REFERENCE, *(sanitize(c.label) for c in couplers)])[1:]
-    axes = [list(zip([(key, v) for v in values], unique([sanitize(f"{key}={v}") for v in values])))
-            for key, values in varies]
+    axes = [list(zip(axis, unique([sanitize(f"{s.key}={s.value}") for s in axis]))) for axis in axes]
     runs = []
     for choice, coupler_folder in zip(couplers, coupler_folders):
         for combo in itertools.product(*axes):
-            values = tuple(kv for kv, _ in combo)
+            values = tuple((s.key, s.value) for s, _ in combo)
             label = "/".join([choice.label, *(f"{k}={v}" for k, v in values)])
-            sets = (*overrides, *([choice.override] if choice.override else []), *(f"{k}={v}" for k, v in values))
+            sets = (*overrides, *([choice.override] if choice.override else []), *(s.override for s, _ in combo))
             runs.append(Planned(Variant(label, case_file, sets), "/".join([coupler_folder, *(f for _, f in combo)]),
                                 choice.label, values))
     return runs
@@ -269,6 +325,19 @@ def execute(jobs: Sequence[Job], workers: int, registry: Registry, plugins: Sequ
                 status, reason = "failed", f"{type(exc).__name__}: {exc}"
             finished(futures[future], status, reason)
     return results
+
+
+def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
+                 plugins: Sequence[str] = ()) -> dict[str, RunData]:
+    """Run every (validated) variant into ``folders[label]`` in this order, then read each folder back.
+
+    :func:`execute` with one line per finished run on stderr; the result is
+    :func:`multilayer.measure.read_run` of each folder, by label, in the
+    order of ``variants``, with the status and reason the run returned.
+    """
+    work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants]
+    status = execute(work, workers, registry, plugins, log=lambda line: print(line, file=sys.stderr))
+    return {v.label: read_run(v.label, folders[v.label], *status[v.label]) for v in variants}
 
 
 # -- measurements (pure) -------------------------------------------------------
@@ -949,16 +1018,24 @@ def _own_coupler(case_file: Path, overrides: Sequence[str], registry: Registry) 
     return CouplerChoice(case.coupler.model, case.coupler.model)
 
 
-def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
-         jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer study", reference_sets: Sequence[str] = ()) -> int:
-    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
+def grid_options(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], jobs: int,
+                 overrides: Sequence[str], registry: Registry,
+                 ) -> tuple[list[CouplerChoice], list[tuple[str, list[str]]], list[Problem]]:
+    """The options a grid command shares: ``--couplers``, every ``--vary``, ``--jobs``, ``--out``.
 
-    ``reference_sets`` are overrides of the reference alone; with them and no
-    ``reference`` file, the reference is ``case_file`` with those overrides.
+    Returns
+    -------
+    tuple
+        The couplers (the case's own when ``couplers`` is None and the
+        options are valid), the ``--vary`` axes, and every problem found in
+        the command line; with problems the first two may be incomplete.
+
+    Raises
+    ------
+    CaseError
+        The case file itself is invalid (found while reading its own
+        coupler).
     """
-    if reference is None and reference_sets:
-        reference = case_file
     problems: list[Problem] = []
     if jobs < 1:
         problems.append(Problem("--jobs", jobs, "expected an integer >= 1 (runs at once)"))
@@ -972,34 +1049,54 @@ def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str]
         axes = parse_varies(varies)
     except CaseError as exc:
         problems += exc.problems
-    out = Path(out)
     if out.exists() and not out.is_dir():
         problems.append(Problem("--out", str(out), "a file, not a folder"))
-    if problems:
-        print("study: invalid command line", file=sys.stderr)
-        print(str(CaseError(problems)), file=sys.stderr)
-        return INVALID
+    if not problems and not choices:
+        choices = [_own_coupler(case_file, overrides, registry)]
+    return choices, axes, problems
+
+
+def invalid_runs(command: str, variants: Sequence[Variant], registry: Registry) -> bool:
+    """Validate every run before any starts; print what is wrong with each (stderr) and say whether any is."""
+    _, invalid = load_variants(variants, registry, snapshots=False)
+    if invalid:
+        print(invalid_message(command, variants, invalid, "runs"), file=sys.stderr)
+    return bool(invalid)
+
+
+def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
+         jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
+         command: str = "multilayer study", reference_sets: Sequence[str] = ()) -> int:
+    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
+
+    ``reference_sets`` are overrides of the reference alone; with them and no
+    ``reference`` file, the reference is ``case_file`` with those overrides.
+    """
+    if reference is None and reference_sets:
+        reference = case_file
+    out = Path(out)
     try:
-        choices = choices or [_own_coupler(case_file, overrides, registry)]
+        choices, axes, problems = grid_options(case_file, out, couplers, varies, jobs, overrides, registry)
     except CaseError as exc:
         print(f"{case_file}: invalid case", file=sys.stderr)
         print(str(exc), file=sys.stderr)
+        return INVALID
+    if problems:
+        print("study: invalid command line", file=sys.stderr)
+        print(str(CaseError(problems)), file=sys.stderr)
         return INVALID
     planned = plan(case_file, choices, axes, overrides)
     variants = [p.variant for p in planned]
     if reference is not None:
         variants.append(Variant(REFERENCE, Path(reference), (*overrides, *reference_sets)))
-    _, invalid = load_variants(variants, registry, snapshots=False)
-    if invalid:
-        print(invalid_message("study", variants, invalid, "runs"), file=sys.stderr)
+    if invalid_runs("study", variants, registry):
         return INVALID
     out.mkdir(parents=True, exist_ok=True)
     folders = {p.label: out / p.folder for p in planned} | ({REFERENCE: out / REFERENCE} if reference else {})
-    work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants]
     # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
-    work = work[-1:] + work[:-1] if reference is not None else work
-    status = execute(work, jobs, registry, plugins, log=lambda line: print(line, file=sys.stderr))
-    runs = {label: read_run(label, folders[label], *status[label]) for label in folders}
+    order = variants[-1:] + variants[:-1] if reference is not None else variants
+    runs = run_variants(order, folders, jobs, registry, plugins)
+    runs = {label: runs[label] for label in folders}
     data = {
         "command": command,
         "case_file": str(case_file),
@@ -1015,7 +1112,7 @@ def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str]
     (out / "study.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
     (out / "study.md").write_text(markdown(data))
     plot(data, out)
-    failed = [label for label, (s, _) in status.items() if s != "ok"]
+    failed = [label for label, run in runs.items() if run.summary.get("status") != "ok"]
     print(f"report: {out / 'study.md'}")
     if failed:
         print(f"study: {len(failed)} run(s) failed: {', '.join(failed)}", file=sys.stderr)
