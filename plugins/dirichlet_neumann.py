@@ -20,7 +20,8 @@ velocities as in ``monolithic``.  Energy: the fluid's identity (with the
 power of the prescribed wall velocity, Δt x·r) plus the wall's (with the
 work of the fluid's force, −Δt x̃·r); they differ by Δt r·(x − x̃), the
 energy the interface creates — zero for a converged implicit step up to the
-tolerance — reported as ``work.interface``.
+tolerance — reported with the opposite sign as ``dissipation.interface``
+(a term of the scheme, not work of a load).
 """
 
 from __future__ import annotations
@@ -108,9 +109,9 @@ class DirichletNeumann(Coupler):
                                v=P.T @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             work = {k: v for k, v in {**w.work, **work_f}.items() if k not in ("work.fluid", "work.wall")}
-            work["work.interface"] = work_f["work.wall"] + w.work["work.fluid"]
             dissipation = {**w.dissipation, **dissipation_f,
-                           "dissipation.numerical.fluid": terms["dissipation.numerical.fluid"]}
+                           "dissipation.numerical.fluid": terms["dissipation.numerical.fluid"],
+                           "dissipation.interface": -(work_f["work.wall"] + w.work["work.fluid"])}
             yield state, StepReport({**w.stored, **stored_f}, work, dissipation,
                                     {"iterations": float(iterations), "interface.residual": residual})
 

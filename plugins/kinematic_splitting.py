@@ -22,8 +22,9 @@ in docs/theory.md).
 
 The energy identity of a step is the sum of the A1 and A2 identities: the
 thin layer's kinetic energy after A1 is the one A2 starts from, and the β
-force enters A1 and A2 with opposite signs, leaving Δt β τ̃·(V̄_Γ − v̄) as
-the column ``work.splitting``.
+force enters A1 and A2 with opposite signs, leaving −Δt β τ̃·(V̄_Γ − v̄) as
+the column ``dissipation.beta`` (a term of the scheme, of either sign, not
+work of a load: the energy bound E ≤ E⁰ + work counts loads only).
 """
 
 from __future__ import annotations
@@ -122,14 +123,16 @@ class KinematicSplitting(Coupler):
             stored.update(stored_f)
             work = {k: w for k, w in a.work.items() if k != "work.splitting"}
             work.update(work_f)
-            if self.beta:
-                work["work.splitting"] = a.work["work.splitting"] - dt * float(tau @ v_bar)
+            if self.beta:  # the β force's net work: a scheme term, not work of a load
+                dissipation_beta = dt * float(tau @ v_bar) - a.work["work.splitting"]
             dissipation = {k: d for k, d in a.dissipation.items() if k != "dissipation.numerical.wall"}
             dissipation["dissipation.numerical.A1"] = a.dissipation["dissipation.numerical.wall"]
             dissipation["dissipation.numerical.A2"] = f["dissipation.numerical.fluid"] + numerical_thin
             dissipation.update(diss_f)
             if S.name != "backward-euler":
                 dissipation["dissipation.splitting"] = splitting
+            if self.beta:
+                dissipation["dissipation.beta"] = dissipation_beta
             report = StepReport(stored, work, dissipation, {
                 "energy.relative_residual.A1": relative(a1_res, a1_scale),
                 "energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),

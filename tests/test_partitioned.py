@@ -39,7 +39,7 @@ def test_implicit_dirichlet_neumann_converges_to_the_monolithic_step(tmp_path, s
     assert gap < 1e-8, gap  # measured ~1e-12 (the tolerance is on the interface velocity)
     assert np.all(dn["energy.relative_residual"] <= 1e-9)
     # converged: the interface creates no energy beyond the tolerance
-    assert np.max(np.abs(dn["work.interface"])) <= 1e-8 * np.max(np.abs(dn["work.inlet"]))
+    assert np.max(np.abs(dn["dissipation.interface"])) <= 1e-8 * np.max(np.abs(dn["work.inlet"]))
     assert np.all(dn["iterations"] >= 2) and summary["iterations"]["max"] == dn["iterations"].max()
 
 
@@ -48,7 +48,7 @@ def test_explicit_dirichlet_neumann_is_stable_for_a_heavy_wall_and_fails_cleanly
     assert code == 0 and summary["steps"] == 20
     assert np.all(s["iterations"] == 1) and np.all(s["energy.relative_residual"] <= 1e-9)
     # the energy it creates at the interface is what makes it unstable: nonzero even when stable
-    assert np.max(np.abs(s["work.interface"])) > 0
+    assert np.max(np.abs(s["dissipation.interface"])) > 0
     code, summary, s = run(tmp_path / "light", '"dirichlet-neumann-explicit"', 0.1)
     assert code == 1 and summary["status"] == "failed"
     assert "t = " in summary["reason"] and ("blow-out" in summary["reason"] or "energy" in summary["reason"])
