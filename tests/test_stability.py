@@ -265,3 +265,45 @@ def test_small_map_report_has_the_command_and_a_table_per_dt(tiny_map):
     assert "## Δt = 0.0002 s" in text and "## Δt = 0.0001 s" in text
     assert text.count("| `kinematic-splitting` | stable, 1.0 it/step, ") == 2
     assert "None: every run is stable." in text
+
+
+def test_the_small_stability_map_shows_the_qualitative_facts(tmp_path):
+    """The CI version of docs/stability.md's map (8 × 2 cells, 20 steps of 1e-4 s).
+
+    Explicit Dirichlet–Neumann fails at the lightest wall; kinematic splitting,
+    its second-order variant and monolithic are stable at every ratio; implicit
+    Dirichlet–Neumann converges, its iterations growing as the wall gets
+    lighter, Aitken's more than IQN-ILS's.
+    """
+    couplers = ['"dirichlet-neumann-explicit"', '"kinematic-splitting"',
+                '{model="kinematic-splitting",scheme="crank-nicolson",beta=1}',
+                '{model="monolithic",scheme="crank-nicolson"}', '"dirichlet-neumann-implicit"',
+                '{model="dirichlet-neumann-implicit",acceleration="aitken",max_iterations=1000}']
+    out = tmp_path / "map"
+    code = main(["stability", str(CASES / "pulse-koiter.toml"), "--out", str(out), "--couplers", ",".join(couplers),
+                 "--jobs", "2", *sum((["--set", s] for s in (
+                     "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002", "time.dt=1e-4",
+                     'output.probes=[{name="eta_z1",quantity="eta",z=1.0}]')), [])])
+    assert code == 0
+    runs = json.loads((out / "stability.json").read_text())["runs"]
+
+    def verdicts(model, **params):
+        picked = [r for r in runs if r["model"] == model
+                  and all(str(v) in r["coupler"] for v in params.values())
+                  and ("scheme=" in r["coupler"]) == ("scheme" in params)
+                  and ("acceleration=" in r["coupler"]) == ("acceleration" in params)]
+        return {r["ratio"]: r for r in picked}
+
+    explicit = verdicts("dirichlet-neumann-explicit")
+    assert explicit[0.001]["verdict"] == "failed"
+    for model, params in (("kinematic-splitting", {}), ("kinematic-splitting", {"scheme": "crank-nicolson"}),
+                          ("monolithic", {"scheme": "crank-nicolson"})):
+        got = verdicts(model, **params)
+        assert len(got) == 4 and all(r["verdict"] == "stable" for r in got.values()), (model, params)
+    iqn, aitken = verdicts("dirichlet-neumann-implicit"), verdicts("dirichlet-neumann-implicit", acceleration="aitken")
+    ratios = sorted(iqn, reverse=True)  # heaviest wall first
+    for got in (iqn, aitken):
+        assert all(got[r]["verdict"] == "stable" for r in ratios)
+        mean = [got[r]["iterations"]["mean"] for r in ratios]
+        assert all(b > a for a, b in zip(mean, mean[1:])), mean
+    assert all(aitken[r]["iterations"]["mean"] > iqn[r]["iterations"]["mean"] for r in ratios)
