@@ -214,7 +214,9 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
             probes = setup.probe_rows(case.output.probes)
             eta_probes = [p.name for p in case.output.probes if p.quantity == "eta"]
             every = case.output.every
-            writers = Writers(results, setup, saved)
+            writers = Writers(results, setup, saved, ["step", "t", *setup.coupler.energy(setup, state),
+                                                      "energy.total", "energy.residual", "energy.relative_residual",
+                                                      *probes])
             t_out = time.perf_counter()
             if every and saved is None:
                 _snapshot(setup, state, results)
@@ -282,14 +284,21 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
 
 
 class Writers:
-    """The per-step files: ``series.csv`` and, with a wall, ``eta_lumen.csv`` (η at the lumen's vertices)."""
+    """The per-step files: ``series.csv`` and, with a wall, ``eta_lumen.csv`` (η at the lumen's vertices).
 
-    def __init__(self, results: ResultsFolder, setup: Setup, saved: checkpoint.Checkpoint | None):
+    ``series.csv`` gets its header before the first step, from the columns
+    known then (the stored energy's terms, the probes); the first row
+    completes it with the step's work and dissipation terms.
+    """
+
+    def __init__(self, results: ResultsFolder, setup: Setup, saved: checkpoint.Checkpoint | None,
+                 columns: list[str]):
         self.results, self.setup = results, setup
         self.keep = saved.tally.steps if saved is not None else None
         if saved is not None:
             results.keep_until(self.keep, saved.snapshots)
-        self.series = None
+        self.series = results.series(columns) if saved is None else None
+        self._provisional = saved is None
         self.eta = None
         if setup.wall is not None:
             line = setup.wall.lines[0]
@@ -299,8 +308,9 @@ class Writers:
                                       self.keep)
 
     def write(self, row: dict, state: State) -> None:
-        if self.series is None:
+        if self.series is None or (self._provisional and list(row) != self.series.columns):
             self.series = self.results.series(list(row), keep_until=self.keep)
+        self._provisional = False
         self.series.append(row)
         if self.eta is not None:
             eta = self.setup.eta(state, 0)[self._vertices]

@@ -153,19 +153,22 @@ class Setup:
     def wall_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
         """Points, cells and point data of the wall at its reference position.
 
-        ``displacement`` is a 3-vector field, so ParaView's *Warp By Vector*
-        shows the deformed wall.
+        Every wall, a line or bands, writes the same fields at the mesh
+        vertices (a P2 field's vertex values): ``displacement`` and
+        ``velocity``, 3-vectors (ParaView's *Warp By Vector* on
+        ``displacement`` shows the deformed wall).  A thin-only wall's
+        velocity is the thin layer's own (the fluid's trace when it carries it).
         """
         wall, st = self.wall, state.wall
         if wall.basis is None:
             line = wall.lines[0]
             mesh = line.basis.mesh
             vert = line.basis.nodal_dofs[0]
-            eta = st.d[vert]
+            zero = np.zeros(len(vert))
             pts = np.column_stack([mesh.p[0], np.full(mesh.p.shape[1], line.radius), np.zeros(mesh.p.shape[1])])
-            disp = np.column_stack([np.zeros_like(eta), eta, np.zeros_like(eta)])
-            return pts, {"line": mesh.t.T}, {"displacement": disp, "eta": eta,
-                                             "velocity_r": self.wall_velocity(state, 0)[vert]}
+            disp = np.column_stack([zero, st.d[vert], zero])
+            vel = np.column_stack([zero, self.wall_velocity(state, 0)[vert], zero])
+            return pts, {"line": mesh.t.T}, {"displacement": disp, "velocity": vel}
         mesh = wall.basis.mesh
         nd = wall.basis.nodal_dofs
         pts = np.column_stack([mesh.p[0], mesh.p[1], np.zeros(mesh.p.shape[1])])
@@ -174,9 +177,14 @@ class Setup:
         return pts, {"triangle": mesh.t.T}, {"displacement": disp, "velocity": vel}
 
     def fluid_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
-        """The channel in its physical (deformed) place: velocity, pressure, ALE displacement."""
+        """The channel in its physical (deformed) place: velocity and pressure at the vertices.
+
+        The points are already where the fluid is, so no displacement field is
+        written (Warp By Vector would move the channel twice).
+        """
         pts, tri, data = self.fluid.snapshot(state.fluid, state.eta)
-        return _xyz(pts), {"triangle": tri}, {k: _xyz(v) if np.ndim(v) == 2 else v for k, v in data.items()}
+        return _xyz(pts), {"triangle": tri}, {k: _xyz(v) if np.ndim(v) == 2 else v for k, v in data.items()
+                                              if k != "displacement"}
 
 
 def _xyz(a: np.ndarray) -> np.ndarray:

@@ -134,7 +134,7 @@ def _vary_label(key: str, text: str) -> str:
 
 
 def make_variants(case_files: Sequence[Path], vary: str | None = None, overrides: Sequence[str] = ()) -> list[Variant]:
-    """The variants of a comparison; CaseError when there are fewer than two or ``--vary`` is malformed.
+    """The variants of a comparison (one case file alone is one variant); CaseError when ``--vary`` is malformed.
 
     ``overrides`` (``--set``) apply to every variant, the varied value last.
 
@@ -150,9 +150,8 @@ def make_variants(case_files: Sequence[Path], vary: str | None = None, overrides
             raise CaseError([Problem("--vary", vary, f"varies one case file; got {len(files)}")])
         labels = unique([_vary_label(key, v) for v in values])
         return [Variant(label, files[0], (*overrides, f"{key}={v}")) for label, v in zip(labels, values)]
-    if len(files) < 2:
-        raise CaseError([Problem("compare", [str(f) for f in files], "expected two or more case files, "
-                                 "or one with --vary KEY=A,B")])
+    if not files:
+        raise CaseError([Problem("compare", [], "expected one or more case files")])
     labels = unique([sanitize(f.stem) for f in files])
     return [Variant(label, f, tuple(overrides)) for label, f in zip(labels, files)]
 

@@ -293,11 +293,10 @@ def test_vary_values_split_like_set_values_inside_tables_and_strings():
 @pytest.mark.parametrize(
     "cases, vary, message",
     [
-        ([MEMBRANE], None, "expected two or more case files"),
         ([MEMBRANE, MEMBRANE], "time.dt=1e-5,2e-5", "varies one case file; got 2"),
     ],
 )
-def test_fewer_than_two_variants_or_vary_over_several_files_exit_2(tmp_path, capsys, cases, vary, message):
+def test_vary_over_several_files_exits_2(tmp_path, capsys, cases, vary, message):
     assert main(compare_argv(tmp_path / "cmp", *cases, vary=vary)) == 2
     assert message in capsys.readouterr().err
 
@@ -314,3 +313,12 @@ def test_case_files_give_unique_labels_from_their_stems(tmp_path):
     assert [c["label"] for c in report["variants"]] == ["wall", "wall-2"]
     assert report["variants"][1]["probes"]["eta_mid"]["max_abs_diff"] == 0.0
     assert (out / "wall-2" / "summary.json").is_file()
+
+
+def test_compare_works_with_one_case(tmp_path):
+    """One case alone is a report of one column: its measurements and pictures."""
+    out = tmp_path / "one"
+    assert main(compare_argv(out, MEMBRANE)) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert len(report["variants"]) == 1 and report["variants"][0]["status"] == "ok"
+    assert (out / "probes.png").is_file() and (out / "eta_spacetime.png").is_file()

@@ -172,3 +172,14 @@ def test_results_folder_api_keeps_its_contract(tmp_path):
     assert (tmp_path / "x" / ".lock").read_text().strip() == str(os.getpid())
     assert json.loads((tmp_path / "x" / "summary.json").read_text())["status"] == "running"
     folder.release()
+
+
+def test_series_has_its_header_before_the_first_step(tmp_path):
+    out = tmp_path / "first"
+    a = argv(out, "time.end=0.001", case="pulse-koiter")
+    a += ["--set", 'coupler={model="dirichlet-neumann-implicit",acceleration="aitken",max_iterations=2}',
+          "--set", "layers[0].density=0.05"]
+    assert main(a) == 1  # fails in its first step
+    assert json.loads((out / "summary.json").read_text())["steps"] == 0
+    header = (out / "series.csv").read_text().splitlines()
+    assert len(header) == 1 and header[0].startswith("step,t,kinetic.layers[0],") and "eta_z1" in header[0]

@@ -79,3 +79,22 @@ def test_summary_converts_numpy(tmp_path):
     data = json.loads(path.read_text())
     assert data == {"status": "ok", "steps": 3, "max": 0.5, "eta": [1.0, 2.0], "where": str(tmp_path)}
     assert path.read_text().startswith('{\n  "status"')  # indent 2
+
+
+def test_snapshots_of_every_wall_have_the_same_fields_and_the_fluid_is_not_moved_twice(tmp_path):
+    from multilayer.cli import main
+    from runs import CASES
+
+    fields = {}
+    for case in ("pulse-koiter", "pulse-koiter-thick"):
+        out = tmp_path / case
+        argv = ["run", str(CASES / f"{case}.toml"), "--out", str(out), "--quiet", "--no-plots"]
+        for s in ("mesh.nz=6", "mesh.nr=2", "time.end=2e-4", "output.every=1"):
+            argv += ["--set", s]
+        assert main(argv) == 0
+        wall = meshio.read(out / "wall_000002.vtu")
+        fields[case] = sorted(wall.point_data)
+        assert all(v.shape[1] == 3 for v in wall.point_data.values())
+        fluid = meshio.read(out / "fluid_000002.vtu")
+        assert sorted(fluid.point_data) == ["pressure", "velocity"]  # the points are already deformed
+    assert fields["pulse-koiter"] == fields["pulse-koiter-thick"] == ["displacement", "velocity"]
