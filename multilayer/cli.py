@@ -124,6 +124,10 @@ def _parser() -> argparse.ArgumentParser:
     study.add_argument("--reference-set", dest="reference_sets", action="append", default=[], metavar="KEY=VALUE",
                        help="override a value of the reference only (after --set); without --reference the "
                             "reference is CASE with these overrides, e.g. time.dt=1.5625e-6")
+    study.add_argument("--probes", metavar="NAME,...",
+                       help="the η probes the errors are measured at (default: every η probe)")
+    study.add_argument("--reuse", action="store_true",
+                       help="keep the runs already in OUT that ended ok with the same case; run only the others")
     study.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
 
     # -- stability: multilayer.stability ----------------------------------------
@@ -165,7 +169,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
             return study.main(args.case, args.out, args.couplers, args.varies, args.reference, args.jobs,
-                              args.overrides, registry, args.plugins, command, args.reference_sets)
+                              args.overrides, registry, args.plugins, command, args.reference_sets,
+                              args.probes.split(",") if args.probes else None, args.reuse)
         if args.command == "stability":
             from multilayer import stability
 

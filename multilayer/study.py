@@ -327,16 +327,33 @@ def execute(jobs: Sequence[Job], workers: int, registry: Registry, plugins: Sequ
     return results
 
 
+def finished_run(variant: Variant, folder: Path, registry: Registry) -> bool:
+    """True when ``folder`` holds an ok run of exactly ``variant``'s case (same digest)."""
+    try:
+        summary = json.loads((folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False
+    if summary.get("status") != "ok":
+        return False
+    return summary.get("case_hash") == load_case(variant.case_file, variant.overrides, registry).digest
+
+
 def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
-                 plugins: Sequence[str] = ()) -> dict[str, RunData]:
+                 plugins: Sequence[str] = (), reuse: bool = False) -> dict[str, RunData]:
     """Run every (validated) variant into ``folders[label]`` in this order, then read each folder back.
 
     :func:`execute` with one line per finished run on stderr; the result is
     :func:`multilayer.measure.read_run` of each folder, by label, in the
     order of ``variants``, with the status and reason the run returned.
+    With ``reuse``, a folder that already holds an ok run of the same case
+    (:func:`finished_run`) is read as it is, not run again.
     """
-    work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants]
+    kept = [v for v in variants if reuse and finished_run(v, folders[v.label], registry)]
+    for v in kept:
+        print(f"[reused] {v.label}: ok, already in {folders[v.label]}", file=sys.stderr)
+    work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants if v not in kept]
     status = execute(work, workers, registry, plugins, log=lambda line: print(line, file=sys.stderr))
+    status.update({v.label: ("ok", "") for v in kept})
     return {v.label: read_run(v.label, folders[v.label], *status[v.label]) for v in variants}
 
 
@@ -635,12 +652,16 @@ def scheme_order(summary: Mapping[str, Any]) -> int | float:
     return order if isinstance(order, int | float) and not isinstance(order, bool) and order > 0 else 1
 
 
-def eta_errors(run: RunData, reference: RunData) -> dict[str, dict[str, Any]]:
-    """:func:`probe_errors` at every ``eta`` probe of ``run`` that the reference has too (same name)."""
+def eta_errors(run: RunData, reference: RunData, names: Sequence[str] | None = None) -> dict[str, dict[str, Any]]:
+    """:func:`probe_errors` at every ``eta`` probe of ``run`` that the reference has too (same name).
+
+    ``names`` (``--probes``) keeps only those probes.
+    """
     ref_probes = {p["name"] for p in reference.probes if p["quantity"] == "eta"}
     return {p["name"]: {"z": p["z"], "line": p.get("line"),
                         **probe_errors(run.t, run.series[p["name"]], reference.t, reference.series[p["name"]])}
-            for p in run.probes if p["quantity"] == "eta" and p["name"] in ref_probes}
+            for p in run.probes if p["quantity"] == "eta" and p["name"] in ref_probes
+            and (names is None or p["name"] in names)}
 
 
 def _worst(probes: Mapping[str, Mapping[str, Any]], key: str) -> float | None:
@@ -724,14 +745,14 @@ def orders_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
-def _between(a: RunData, b: RunData) -> dict[str, float | None]:
+def _between(a: RunData, b: RunData, names: Sequence[str] | None = None) -> dict[str, float | None]:
     """``error`` and ``peak_error`` of ``a`` measured against ``b``."""
-    probes = eta_errors(a, b)
+    probes = eta_errors(a, b, names)
     return {"error": _worst(probes, "relative_linf"), "peak_error": _worst(probes, "peak_error")}
 
 
 def reference_error(reference: RunData, ref_order: float, rows: Sequence[Mapping[str, Any]],
-                    runs: Mapping[str, RunData]) -> dict[str, Any]:
+                    runs: Mapping[str, RunData], names: Sequence[str] | None = None) -> dict[str, Any]:
     """Richardson's estimate of the reference's own ``error`` and ``peak_error``.
 
     From the two finest ok runs whose case is the reference's but for Δt
@@ -755,8 +776,8 @@ def reference_error(reference: RunData, ref_order: float, rows: Sequence[Mapping
     fine, coarse = chain[-1], chain[-2]
     ratio = coarse["dt"] / fine["dt"]
     dt_ref = (reference.case.get("time") or {}).get("dt", fine["dt"])
-    d_fine = _between(runs[coarse["label"]], runs[fine["label"]])
-    d_coarse = _between(runs[chain[0]["label"]], runs[coarse["label"]]) if len(chain) == 3 else None
+    d_fine = _between(runs[coarse["label"]], runs[fine["label"]], names)
+    d_coarse = _between(runs[chain[0]["label"]], runs[coarse["label"]], names) if len(chain) == 3 else None
     out: dict[str, Any] = {"estimated": True, "fine": fine["label"], "coarse": coarse["label"],
                            "third": chain[0]["label"] if len(chain) == 3 else None, "ratio": ratio,
                            "formal_order": ref_order}
@@ -797,7 +818,7 @@ def cost_table(rows: Sequence[dict[str, Any]], orders: Sequence[Mapping[str, Any
 
 
 def collect(planned: Sequence[Planned], runs: Mapping[str, RunData], couplers: Sequence[CouplerChoice],
-            reference: RunData | None = None) -> dict[str, Any]:
+            reference: RunData | None = None, probes: Sequence[str] | None = None) -> dict[str, Any]:
     """Every number of ``study.json``, from the results folders read back (``runs`` by label).
 
     ``reference`` is the ``--reference`` run; without it the reference is
@@ -833,13 +854,13 @@ def collect(planned: Sequence[Planned], runs: Mapping[str, RunData], couplers: S
             row["not_compared"] = "its case differs from the reference's at " + ", ".join(differs)
             continue
         row["compared"] = True
-        row["probes"] = eta_errors(run, reference)
+        row["probes"] = eta_errors(run, reference, probes)
         row["error"] = _worst(row["probes"], "relative_linf")
         row["peak_error"] = _worst(row["probes"], "peak_error")
     orders = orders_table(rows)
     measured = [r for r in rows if _measured(r) and r["wall_time_s"] is not None]
     front = pareto_front([r["wall_time_s"] for r in measured], [r["error"] for r in measured])
-    ref_info["richardson"] = (reference_error(reference, ref_order, rows, runs) if usable
+    ref_info["richardson"] = (reference_error(reference, ref_order, rows, runs, probes) if usable
                               else {"estimated": False, "note": "no ok reference"})
     return {
         "reference": ref_info,
@@ -891,6 +912,8 @@ def markdown(data: Mapping[str, Any]) -> str:
     lines += ["`error`: max over the η probes of max_t |η − η_ref| / max_t |η_ref|; `peak error`: max over the "
               "η probes of |max_t η − max_t η_ref| / |max_t η_ref|; `arrival`: the largest |time of max η − the "
               "reference's| over the probes.", ""]
+    if isinstance(data.get("probes"), list):
+        lines += ["The η probes measured (`--probes`): " + ", ".join(f"`{p}`" for p in data["probes"]) + ".", ""]
     lines += ["## Runs", "", "| run | status | Δt (s) | nz | wall time (s) | steps | DOFs | error | peak error "
               "| arrival (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -1066,11 +1089,14 @@ def invalid_runs(command: str, variants: Sequence[Variant], registry: Registry) 
 
 def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
          jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer study", reference_sets: Sequence[str] = ()) -> int:
+         command: str = "multilayer study", reference_sets: Sequence[str] = (),
+         probes: Sequence[str] | None = None, reuse: bool = False) -> int:
     """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
 
     ``reference_sets`` are overrides of the reference alone; with them and no
     ``reference`` file, the reference is ``case_file`` with those overrides.
+    ``probes`` (``--probes``) are the η probes the errors are measured at (all
+    by default); ``reuse`` (``--reuse``) keeps finished runs of the same case.
     """
     if reference is None and reference_sets:
         reference = case_file
@@ -1095,8 +1121,16 @@ def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str]
     folders = {p.label: out / p.folder for p in planned} | ({REFERENCE: out / REFERENCE} if reference else {})
     # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
     order = variants[-1:] + variants[:-1] if reference is not None else variants
-    runs = run_variants(order, folders, jobs, registry, plugins)
+    runs = run_variants(order, folders, jobs, registry, plugins, reuse)
     runs = {label: runs[label] for label in folders}
+    if probes is not None:
+        known = {p["name"] for r in runs.values() for p in r.probes if p["quantity"] == "eta"}
+        unknown = [name for name in probes if name not in known]
+        if unknown:
+            print(str(CaseError([Problem("--probes", name, "not an η probe of these runs",
+                                         did_you_mean(name, sorted(known)) or f"η probes: {', '.join(sorted(known))}")
+                                 for name in unknown])), file=sys.stderr)
+            return INVALID
     data = {
         "command": command,
         "case_file": str(case_file),
@@ -1105,7 +1139,8 @@ def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str]
         "couplers": [attrs.asdict(c) for c in choices],
         "vary": [{"key": k, "values": v} for k, v in axes],
         "targets": list(TARGETS),
-        **collect(planned, runs, choices, runs.get(REFERENCE)),
+        "probes": list(probes) if probes is not None else "every η probe",
+        **collect(planned, runs, choices, runs.get(REFERENCE), probes),
     }
     for row in data["runs"]:
         del row["coupler_index"]

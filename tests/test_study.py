@@ -328,3 +328,21 @@ def test_reference_set_makes_the_reference_from_the_case(tmp_path):
     data = json.loads((out / "study.json").read_text())
     assert data["reference"]["source"] == "--reference" and data["reference"]["dt"] == 2.5e-5
     assert json.loads((out / "reference" / "summary.json").read_text())["steps"] == 8
+
+
+def test_probes_and_reuse(tmp_path, capsys):
+    """--probes measures at the named η probes only; --reuse runs nothing that already ended ok."""
+    out = tmp_path / "pr"
+    argv = ["study", str(CASES / "pulse-koiter.toml"), "--out", str(out), "--vary", "time.dt=4e-4,2e-4"]
+    for s in ("mesh.nz=12", "mesh.nr=3", "time.end=0.002"):
+        argv += ["--set", s]
+    assert main([*argv, "--probes", "eta_z1,eta_z2"]) == 0
+    data = json.loads((out / "study.json").read_text())
+    assert data["probes"] == ["eta_z1", "eta_z2"]
+    assert all(set(r["probes"]) <= {"eta_z1", "eta_z2"} for r in data["runs"])
+    capsys.readouterr()
+    assert main([*argv, "--reuse"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("[reused]") == 2 and "[1/" not in err  # nothing ran again
+    assert main([*argv, "--probes", "eta_z9"]) == 2
+    assert "--probes = 'eta_z9': not an η probe" in capsys.readouterr().err
