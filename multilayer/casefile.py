@@ -32,8 +32,9 @@ from multilayer.case import (
     TimeSpec,
 )
 from multilayer.formula import Formula, FormulaError
+from multilayer.formula_domain import Domain, defect
 from multilayer.linsolve import BACKENDS
-from multilayer.loads import load_from_spec
+from multilayer.loads import FormulaPressure, load_from_spec
 from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
 from multilayer.records import Param
 from multilayer.registry import Registry
@@ -302,9 +303,10 @@ class _Validator:
         fluid = self.fluid(data.get("fluid"))
         layers, H = self.layers(data.get("layers", MISSING), fluid)
         coupler = self.coupler(data.get("coupler", MISSING), fluid)
-        # stand-ins keep formulas checkable while geometry has its own problems
+        # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
-        loads = self.loads(data.get("loads", {}), constants)
+        end = time.get("end", 1.0)
+        loads = self.loads(data.get("loads", {}), constants, end)
         initial = self.initial(data.get("initial", {}), constants)
         output = self.output(data.get("output", {}), constants, fluid, layers)
         solver = self.section(data, "solver", SOLVER)
@@ -463,12 +465,22 @@ class _Validator:
         found, params, _ = checked
         return ModelSpec(path="coupler", model=found.name, params=params)
 
-    def formula(self, expr: Any, path: str, constants: Mapping[str, float], variables: tuple[str, ...]) -> Formula:
+    def formula(self, expr: Any, path: str, constants: Mapping[str, float], domain: Domain) -> Formula:
+        """The formula at ``path``, checked, then judged on ``domain`` (the ranges of its variables)."""
+        variables = tuple(domain.ranges)
         try:
-            return Formula.parse(expr, constants, variables)
+            formula = Formula.parse(expr, constants, variables)
         except FormulaError as exc:
             self.problems.append(Problem(path, expr, f"invalid formula in {', '.join(variables)}: {exc}"))
             return Formula.zero()
+        self.judge(formula, path, domain)
+        return formula
+
+    def judge(self, formula: Formula, path: str, domain: Domain) -> None:
+        """A problem at ``path`` when ``formula`` is not a finite real number somewhere on ``domain``."""
+        reason = defect(formula, domain)
+        if reason is not None:
+            self.problems.append(Problem(path, str(formula), f"{reason}; expected a finite real value for every {domain}"))
 
     def table(self, data: Any, path: str, keys: Iterable[str]) -> Mapping[str, Any]:
         """A table whose keys must be among ``keys``; {} (with a problem) if it is not a table."""
@@ -481,17 +493,22 @@ class _Validator:
         )
         return data
 
-    def loads(self, data: Any, constants: Mapping[str, float]) -> Loads:
+    def loads(self, data: Any, constants: Mapping[str, float], end: float) -> Loads:
         data = self.table(data, "loads", (*LOAD_KEYS, "wall_motion"))
         pressures = {}
         for key in LOAD_KEYS:
+            spec = data.get(key, 0.0)
             try:
-                pressures[key] = load_from_spec(data.get(key, 0.0), f"loads.{key}", self.base_dir, constants)
+                pressures[key] = load_from_spec(spec, f"loads.{key}", self.base_dir, constants)
             except CaseError as exc:
                 self.add(exc.problems)
                 pressures[key] = load_from_spec(0.0, f"loads.{key}")
+            if isinstance(pressures[key], FormulaPressure):
+                where = f"loads.{key}" if isinstance(spec, str) else f"loads.{key}.expr"
+                self.judge(pressures[key].formula, where, Domain({"t": (0.0, end)}))
         motion = data.get("wall_motion")
-        wall_motion = None if motion is None else self.formula(motion, "loads.wall_motion", constants, ("t", "z"))
+        wall_motion = None if motion is None else self.formula(
+            motion, "loads.wall_motion", constants, Domain({"t": (0.0, end), "z": (0.0, constants["L"])}))
         return Loads(**pressures, wall_motion=wall_motion)
 
     def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
@@ -499,9 +516,11 @@ class _Validator:
         fields = {}
         for name in ("displacement", "velocity"):
             part = self.table(data.get(name, {}), f"initial.{name}", ("r", "z"))
+            # evaluated on the wall: z along the channel, r across every band (the lumen line alone without one)
+            wall = Domain({"z": (0.0, constants["L"]), "r": (constants["R"], constants["R"] + constants["H"])})
             for component in ("r", "z"):
                 fields[f"{name}_{component}"] = self.formula(
-                    part.get(component, "0"), f"initial.{name}.{component}", constants, ("z", "r")
+                    part.get(component, "0"), f"initial.{name}.{component}", constants, wall
                 )
         return Initial(**fields)
 
