@@ -31,6 +31,7 @@ from multilayer.case import (
     Probe,
     TimeSpec,
 )
+from multilayer import resources
 from multilayer.formula import Formula, FormulaError
 from multilayer.formula_domain import Domain, defect
 from multilayer.linsolve import BACKENDS
@@ -302,6 +303,7 @@ class _Validator:
         self.check_steps(time)
         fluid = self.fluid(data.get("fluid"))
         layers, H = self.layers(data.get("layers", MISSING), fluid)
+        self.check_size(mesh, fluid, layers)
         coupler = self.coupler(data.get("coupler", MISSING), fluid)
         # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
@@ -364,11 +366,40 @@ class _Validator:
         if "end" not in time or "dt" not in time:
             return
         steps = time["end"] / time["dt"]
-        if round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
+        if not steps <= resources.MAX_STEPS:  # also end/dt = inf
+            self.problems.append(
+                Problem("time.dt", time["dt"], f"{steps:.3g} steps to time.end = {time['end']:g}; expected at most "
+                        f"{resources.MAX_STEPS:.0e} steps", "is dt in seconds?")
+            )
+        elif round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
             self.problems.append(
                 Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
                         f"end/dt = {steps:.6g}")
             )
+
+    def check_size(self, mesh: Mapping[str, Any], fluid: ModelSpec | None, layers: list[LayerSpec]) -> None:
+        """Refuse a case whose unknowns would not fit in the machine's available memory (:mod:`multilayer.resources`).
+
+        The problem is reported at the largest of the size keys (``mesh.nz``,
+        ``mesh.nr``, a band's ``cells``).
+        """
+        if not {"nz", "nr", "order"} <= mesh.keys():
+            return
+        bands = [layer for layer in layers if not layer.thin and layer.cells is not None]
+        need = resources.need(mesh["nz"], mesh["nr"], mesh["order"], fluid=fluid is not None, wall=bool(layers),
+                              band_cells=[layer.cells for layer in bands])
+        available = resources.available_memory()
+        if available is None or need.memory <= available:
+            return
+        sizes = [("mesh.nz", mesh["nz"])] + ([("mesh.nr", mesh["nr"])] if fluid is not None else [])
+        sizes += [(f"{layer.path}.cells", layer.cells) for layer in bands]
+        path, value = max(sizes, key=lambda item: item[1])
+        parts = ", ".join(f"{part} {n:.3g}" for part, n in (("fluid", need.fluid), ("wall", need.wall)) if n)
+        self.problems.append(Problem(
+            path, value,
+            f"the case needs about {resources.gigabytes(need.memory)} of memory ({need.dofs:.3g} unknowns: {parts}), "
+            f"this machine has {resources.gigabytes(available)} available",
+            "use a coarser mesh (see docs/case-files.md, Size limits)"))
 
     def model(self, kind: str, spec: Any, path: str, extra: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any], bool] | None:
         """(registered plugin, checked params, params ok) of a ``{model = ..., ...}`` table.

@@ -378,6 +378,45 @@ def test_power_towers_are_refused_at_once(tmp_path, expr):
     assert done.returncode == 2 and "an overflow" in done.stderr and "Traceback" not in done.stderr
 
 
+# Sizes that cannot run are refused before any work (BASE: a wall of nz x 2 band cells, no fluid).
+SIZE_MISTAKES = [
+    ("nz-billion", ["mesh.nz=1000000000"],
+     ["mesh.nz = 1000000000: the case needs about", "GB of memory (2e+10 unknowns: wall 2e+10), this machine has",
+      "GB available"]),
+    ("nz-int64-max", ["mesh.nz=9223372036854775807"], ["mesh.nz = 9223372036854775807: the case needs about"]),
+    ("cells-billion", ["layers[1].cells=1000000000"], ["layers[1].cells = 1000000000: the case needs about"]),
+    ("nr-with-a-fluid", ["fluid={model=\"stokes\", density=1.0, viscosity=0.035}", "coupler=kinematic-splitting",
+                         "mesh.nr=1000000000"], ["mesh.nr = 1000000000: the case needs about", "fluid 5.9e+10, wall 130"]),
+    ("steps", ["time.dt=1e-13"], ["time.dt = 1e-13: 1e+10 steps to time.end = 0.001; expected at most 1e+08 steps"]),
+    ("steps-infinite", ["time.dt=1e-320"], ["time.dt = 1e-320: inf steps"]),
+]
+
+
+@pytest.mark.parametrize("sets, fragments", [m[1:] for m in SIZE_MISTAKES], ids=[m[0] for m in SIZE_MISTAKES])
+def test_cli_refuses_sizes_that_cannot_run(tmp_path, capsys, sets, fragments):
+    path = write_case(tmp_path, None)
+    args = [a for s in sets for a in ("--set", s)]
+    assert main(["validate", str(path), *args]) == 2
+    out, err = capsys.readouterr()
+    for fragment in fragments:
+        assert fragment in err
+    assert "Traceback" not in out + err
+
+
+def test_the_memory_check_weighs_the_case_against_this_machine(tmp_path, capsys, monkeypatch):
+    import multilayer.resources
+
+    path = write_case(tmp_path, None)
+    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e9)
+    assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 2
+    assert ("mesh.nz = 20000: the case needs about 8.9 GB of memory (4e+05 unknowns: wall 4e+05), "
+            "this machine has 1 GB available") in capsys.readouterr().err
+    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e12)
+    assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
+    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: None)  # unknown: not refused
+    assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
+
+
 def write_case(tmp_path, edit):
     text = BASE
     if edit is not None:
