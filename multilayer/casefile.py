@@ -14,9 +14,11 @@ import hashlib
 import json
 import re
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
+
+import attrs
 
 from multilayer.case import (
     Case,
@@ -36,12 +38,13 @@ from multilayer.formula import Formula, FormulaError
 from multilayer.formula_domain import Domain, defect
 from multilayer.linsolve import BACKENDS
 from multilayer.loads import FormulaPressure, load_from_spec
+from multilayer.partial import NotBuilt, Unbuilt
 from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
 from multilayer.records import Param
 from multilayer.registry import Registry
 
-__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems", "key_steps",
-           "parse_value"]
+__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems",
+           "coupler_objections", "key_steps", "parse_value"]
 
 SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver")
 
@@ -134,11 +137,7 @@ def validate_data(data: Mapping[str, Any], base_dir: Path | str = ".", registry:
         Listing every problem found.
     """
     registry = registry or Registry.load()
-    case = _Validator(registry, Path(base_dir)).case(data)
-    problems = coupler_problems(case, registry)
-    if problems:
-        raise CaseError(problems)
-    return case
+    return _Validator(registry, Path(base_dir)).case(data)
 
 
 def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
@@ -146,17 +145,31 @@ def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
 
     The coupler factory is called with the case's coupler parameters; a
     ``ValueError`` it raises and every string its ``check_case(case)``
-    returns become problems at ``coupler.model``.
+    returns become problems at ``coupler.model``.  (Validation asks the
+    coupler itself, in the same pass as every other check.)
     """
     record = registry.get("coupler", case.coupler.model).record
     try:
         coupler = record.factory(**case.coupler.params)
     except ValueError as exc:
         return [Problem(case.coupler.path, MISSING, f"{case.coupler.model}: {exc}")]
+    return coupler_objections(coupler, case)
+
+
+def coupler_objections(coupler: Any, case: Case) -> list[Problem]:
+    """Every string ``coupler.check_case(case)`` returns, as a problem at ``coupler.model``.
+
+    ``case`` may have placeholders for parts that could not be built
+    (:mod:`multilayer.partial`); a coupler that reads one is not asked now.
+    """
     check = getattr(coupler, "check_case", None)
     if check is None:
         return []
-    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in check(case)]
+    try:
+        reasons = list(check(case))
+    except NotBuilt:
+        return []
+    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in reasons]
 
 
 # -- overrides -------------------------------------------------------------
@@ -273,6 +286,8 @@ class _Validator:
         self.problems: list[Problem] = []
         #: False once a layer is invalid: then H and the line count are unknown
         self.stack_known = True
+        #: the coupler built from the case, when it could be: asked for its objections
+        self.coupler_object: Any = None
 
     def add(self, problems: Iterable[Problem]) -> None:
         self.problems.extend(problems)
@@ -286,6 +301,14 @@ class _Validator:
         self.add(problems)
         return values
 
+    def mark(self) -> int:
+        """How many problems there are so far: a part is built when none were added since its mark."""
+        return len(self.problems)
+
+    def part(self, where: str, mark: int, build: Callable[[], Any]) -> Any:
+        """``build()`` when no problem was added since ``mark``, else a placeholder (:class:`Unbuilt`)."""
+        return build() if len(self.problems) == mark else Unbuilt(where)
+
     def case(self, data: Mapping[str, Any]) -> Case:
         if not isinstance(data, Mapping):
             raise CaseError([Problem("case", data, "expected a table of sections")])
@@ -294,24 +317,44 @@ class _Validator:
             for key, value in data.items()
             if key not in SECTIONS
         )
+        parts: dict[str, Any] = {}
+        mark = self.mark()
         title = data.get("title", "")
         if not isinstance(title, str):
             self.problems.append(Problem("title", title, "expected a string"))
+        parts["title"] = self.part("title", mark, lambda: title)
+        mark = self.mark()
         geometry = self.section(data, "geometry", GEOMETRY)
+        parts["geometry"] = self.part("geometry", mark, lambda: Geometry(**geometry))
+        mark = self.mark()
         mesh = self.section(data, "mesh", MESH)
+        parts["mesh"] = self.part("mesh", mark, lambda: MeshSpec(**mesh))
+        mark = self.mark()
         time = self.section(data, "time", TIME)
         self.check_steps(time)
+        parts["time"] = self.part("time", mark, lambda: TimeSpec(**time))
+        mark = self.mark()
         fluid = self.fluid(data.get("fluid"))
-        layers, H = self.layers(data.get("layers", MISSING), fluid)
+        parts["fluid"] = self.part("fluid", mark, lambda: fluid)
+        layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
         self.check_size(mesh, fluid, layers)
-        coupler = self.coupler(data.get("coupler", MISSING), fluid)
+        coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
         # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
         end = time.get("end", 1.0)
-        loads = self.loads(data.get("loads", {}), constants, end)
+        loads = parts["loads"] = self.loads(data.get("loads", {}), constants, end)
+        mark = self.mark()
         initial = self.initial(data.get("initial", {}), constants)
+        parts["initial"] = self.part("initial", mark, lambda: initial)
+        mark = self.mark()
         output = self.output(data.get("output", {}), constants, fluid, layers)
+        parts["output"] = self.part("output", mark, lambda: output)
+        mark = self.mark()
         solver = self.section(data, "solver", SOLVER)
+        parts["solver"] = self.part("solver", mark, lambda: solver["linear"])
+        parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
+        case = Case(**parts)
+        self.add(self.objections(case))
         if self.problems:
             raise CaseError(self.problems)
 
@@ -345,22 +388,13 @@ class _Validator:
             "solver": solver,
         }
         canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
-        return Case(
-            title=title,
-            geometry=Geometry(**geometry),
-            mesh=MeshSpec(**mesh),
-            time=TimeSpec(**time),
-            fluid=fluid,
-            layers=tuple(layers),
-            coupler=coupler,
-            loads=loads,
-            initial=initial,
-            output=output,
-            solver=solver["linear"],
-            limits=Limits(solver["max_displacement"], solver["energy_margin"]),
-            resolved=resolved,
-            digest=hashlib.sha256(canonical.encode()).hexdigest(),
-        )
+        return attrs.evolve(case, resolved=resolved, digest=hashlib.sha256(canonical.encode()).hexdigest())
+
+    def objections(self, case: Case) -> list[Problem]:
+        """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""
+        if self.coupler_object is None:
+            return []
+        return coupler_objections(self.coupler_object, case)
 
     def check_steps(self, time: Mapping[str, float]) -> None:
         if "end" not in time or "dt" not in time:
@@ -449,40 +483,54 @@ class _Validator:
             self.construct(found, params, "fluid")
         return ModelSpec(path="fluid", model=found.name, params=params)
 
-    def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float]:
+    def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float, Any]:
+        """The valid layers, the thickness H of their bands, and the stack as a part of the case.
+
+        The part is a tuple with a placeholder for each invalid layer, or a
+        placeholder for the whole stack when ``layers`` itself is wrong.
+        """
         if specs is MISSING:
             specs = []
         if not isinstance(specs, list):
             self.problems.append(Problem("layers", specs, "expected an array of tables [[layers]]"))
-            return [], 0.0
+            return [], 0.0, Unbuilt("layers")
         if not specs and fluid is None:
             self.problems.append(Problem("layers", MISSING, "missing; a case without a fluid needs at least one [[layers]]"))
-        layers, H = [], 0.0
+            return [], 0.0, Unbuilt("layers")
+        layers, H, part = [], 0.0, []
         for i, spec in enumerate(specs):
             path = f"layers[{i}]"
-            spec = {"model": spec} if isinstance(spec, str) else spec
-            checked = self.model("layer", spec, path, extra=("cells",))
-            if checked is None:
-                self.stack_known = False
-                continue
-            found, params, ok = checked
-            thin = found.record.thin
-            cells = None
-            if thin and "cells" in spec:
-                self.problems.append(Problem(f"{path}.cells", spec["cells"], "only a thick layer has radial cells",
-                                             f"{found.name!r} is a thin layer"))
-            elif not thin:
-                values, problems = check_params({k: spec[k] for k in ("cells",) if k in spec}, (CELLS,), path)
-                self.add(problems)
-                cells = values.get("cells")
-            if not ok:
-                self.stack_known = False
-                continue
-            layer = self.construct(found, params, path)
-            if not thin:
-                H += float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
-            layers.append(LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells))
-        return layers, H
+            mark = self.mark()
+            found = self.layer(spec, path)
+            if found is not None:
+                layers.append(found[0])
+                H += found[1]
+            part.append(self.part(path, mark, lambda: layers[-1]))
+        return layers, H, tuple(part)
+
+    def layer(self, spec: Any, path: str) -> tuple[LayerSpec, float] | None:
+        """A valid layer and the thickness of its band (0 for a thin layer), or None."""
+        spec = {"model": spec} if isinstance(spec, str) else spec
+        checked = self.model("layer", spec, path, extra=("cells",))
+        if checked is None:
+            self.stack_known = False
+            return None
+        found, params, ok = checked
+        thin = found.record.thin
+        cells = None
+        if thin and "cells" in spec:
+            self.problems.append(Problem(f"{path}.cells", spec["cells"], "only a thick layer has radial cells",
+                                         f"{found.name!r} is a thin layer"))
+        elif not thin:
+            values, problems = check_params({k: spec[k] for k in ("cells",) if k in spec}, (CELLS,), path)
+            self.add(problems)
+            cells = values.get("cells")
+        if not ok:
+            self.stack_known = False
+            return None
+        layer = self.construct(found, params, path)
+        H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
+        return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
 
     def coupler(self, spec: Any, fluid: ModelSpec | None) -> ModelSpec:
         default = "structure-only" if fluid is None else "kinematic-splitting"
@@ -493,7 +541,9 @@ class _Validator:
         checked = self.model("coupler", spec, "coupler")
         if checked is None:
             return ModelSpec(path="coupler", model="?")
-        found, params, _ = checked
+        found, params, ok = checked
+        if ok:
+            self.coupler_object = self.construct(found, params, "coupler")
         return ModelSpec(path="coupler", model=found.name, params=params)
 
     def formula(self, expr: Any, path: str, constants: Mapping[str, float], domain: Domain) -> Formula:
@@ -528,19 +578,20 @@ class _Validator:
         data = self.table(data, "loads", (*LOAD_KEYS, "wall_motion"))
         pressures = {}
         for key in LOAD_KEYS:
-            spec = data.get(key, 0.0)
+            spec, mark = data.get(key, 0.0), self.mark()
             try:
-                pressures[key] = load_from_spec(spec, f"loads.{key}", self.base_dir, constants)
+                load = load_from_spec(spec, f"loads.{key}", self.base_dir, constants)
             except CaseError as exc:
                 self.add(exc.problems)
-                pressures[key] = load_from_spec(0.0, f"loads.{key}")
-            if isinstance(pressures[key], FormulaPressure):
+                load = None
+            if isinstance(load, FormulaPressure):
                 where = f"loads.{key}" if isinstance(spec, str) else f"loads.{key}.expr"
-                self.judge(pressures[key].formula, where, Domain({"t": (0.0, end)}))
-        motion = data.get("wall_motion")
+                self.judge(load.formula, where, Domain({"t": (0.0, end)}))
+            pressures[key] = self.part(f"loads.{key}", mark, lambda: load)
+        motion, mark = data.get("wall_motion"), self.mark()
         wall_motion = None if motion is None else self.formula(
             motion, "loads.wall_motion", constants, Domain({"t": (0.0, end), "z": (0.0, constants["L"])}))
-        return Loads(**pressures, wall_motion=wall_motion)
+        return Loads(**pressures, wall_motion=self.part("loads.wall_motion", mark, lambda: wall_motion))
 
     def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
         data = self.table(data, "initial", ("displacement", "velocity"))

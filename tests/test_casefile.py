@@ -194,6 +194,15 @@ def test_coupler_check_case(case_file):
     assert coupler_problems(case, FAKES) == []
 
 
+def test_coupler_objections_come_with_every_other_problem(case_file):
+    with pytest.raises(CaseError) as info:
+        load_case(case_file, ["fluid=none", "coupler=kinematic-splitting", "output.probes[2].quantity=eta",
+                              "layers[1].density=-1", "time.dt=0"], FAKES)
+    paths = [p.path for p in info.value.problems]
+    assert paths == ["time.dt", "layers[1].density", "coupler.model"]
+    assert "kinematic-splitting needs a fluid" in str(info.value)
+
+
 def test_probe_rules(case_file):
     with pytest.raises(CaseError) as info:
         load_case(
@@ -441,6 +450,43 @@ def test_cli_reports_each_mistake(tmp_path, capsys, edit, args, fragments):
     for fragment in fragments:
         assert fragment in err
     assert "Traceback" not in out + err
+
+
+# Other problems and the coupler's objections in one pass (real plugins; BASE is a wall, structure-only).
+ONE_PASS = [
+    ("load-and-parameter", ["loads.inlet=100", "layers[0].poisson=0.5"],
+     ["layers[0].poisson = 0.5: expected a number",
+      "coupler.model = 'structure-only': loads.inlet is set, but structure-only does not apply it"]),
+    ("fluid-misspelt", ['fluid={model="navier-stoke", density=1.0}', "coupler=structure-only"],
+     ["fluid.model = 'navier-stoke': no such fluid plugin",
+      "coupler.model = 'structure-only': structure-only runs a wall without fluid"]),
+    ("mesh-and-thick-first", ['fluid={model="stokes", density=1.0, viscosity=0.035}', "coupler=monolithic",
+                              "loads.interface=0", "mesh.order=3",
+                              'layers[0]={model="linear-elastic", density=1.0, thickness=0.1, young=1e6, poisson=0.3}'],
+     ["mesh.order = 3: expected one of 1, 2", "coupler.model = 'monolithic': monolithic needs a thin layer at the "
+      "fluid interface, but layers[0] is 'linear-elastic' (thick)"]),
+]
+
+
+@pytest.mark.parametrize("sets, fragments", [m[1:] for m in ONE_PASS], ids=[m[0] for m in ONE_PASS])
+def test_cli_reports_coupler_objections_with_the_rest(tmp_path, capsys, sets, fragments):
+    path = write_case(tmp_path, None)
+    assert main(["validate", str(path), *(a for s in sets for a in ("--set", s))]) == 2
+    out, err = capsys.readouterr()
+    for fragment in fragments:
+        assert fragment in err
+    assert "Traceback" not in out + err
+
+
+def test_a_coupler_is_not_asked_about_parts_that_could_not_be_built(tmp_path, capsys):
+    # kinematic-splitting reads layers[0]; it is invalid, so the coupler's view of it waits for the next pass
+    path = write_case(tmp_path, None)
+    assert main(["validate", str(path), "--set", 'fluid={model="stokes", density=1.0, viscosity=0.035}',
+                 "--set", "coupler=kinematic-splitting", "--set", "loads.interface=0",
+                 "--set", "layers[0].model=koiter"]) == 2
+    err = capsys.readouterr().err
+    assert "layers[0].model = 'koiter': no such layer plugin" in err
+    assert "coupler.model" not in err and "Traceback" not in err
 
 
 def test_cli_missing_case_file(tmp_path, capsys):
