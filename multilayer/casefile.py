@@ -20,6 +20,7 @@ from typing import Any
 
 import attrs
 
+from multilayer import resources, wall_probe
 from multilayer.case import (
     Case,
     Geometry,
@@ -33,9 +34,10 @@ from multilayer.case import (
     Probe,
     TimeSpec,
 )
-from multilayer import resources
 from multilayer.formula import Formula, FormulaError
 from multilayer.formula_domain import Domain, defect
+from multilayer.interfaces import Layer
+from multilayer.layer_checks import abstract_problem, raised, type_problem
 from multilayer.linsolve import BACKENDS
 from multilayer.loads import FormulaPressure, load_from_spec
 from multilayer.partial import NotBuilt, Unbuilt
@@ -288,6 +290,8 @@ class _Validator:
         self.stack_known = True
         #: the coupler built from the case, when it could be: asked for its objections
         self.coupler_object: Any = None
+        #: the layer objects built from the case, by key path
+        self.built_layers: dict[str, Layer] = {}
 
     def add(self, problems: Iterable[Problem]) -> None:
         self.problems.extend(problems)
@@ -336,8 +340,11 @@ class _Validator:
         mark = self.mark()
         fluid = self.fluid(data.get("fluid"))
         parts["fluid"] = self.part("fluid", mark, lambda: fluid)
+        mark = self.mark()
         layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
         self.check_size(mesh, fluid, layers)
+        if self.mark() == mark:
+            self.probe_layers(layers, geometry, mesh)
         coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
         # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
@@ -463,13 +470,24 @@ class _Validator:
         return found, params, not problems
 
     def construct(self, found: Any, params: dict[str, Any], path: str) -> Any:
-        """Build the plugin once: only its factory can check constraints across parameters."""
+        """Build the plugin once: only its factory can check constraints across parameters.
+
+        A ``ValueError`` is the factory's verdict on the parameters; any other
+        exception, or a class with unimplemented abstract methods, is a
+        mistake in the plugin, reported at ``path`` with the plugin's name.
+        """
+        problem = abstract_problem(found.record.factory)
+        if problem:
+            self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+            return None
         try:
             return found.record.factory(**params)
         except ValueError as exc:
             message = str(exc) if str(exc).startswith(found.name) else f"{found.name}: {exc}"
             self.problems.append(Problem(path, MISSING, message))
-            return None
+        except Exception as exc:  # the plugin's own code failed, not the case
+            self.problems.append(Problem(path, MISSING, f"{found.name}: the plugin's factory raised {raised(exc)}"))
+        return None
 
     def fluid(self, spec: Any) -> ModelSpec | None:
         if spec is None or spec == "none" or (isinstance(spec, Mapping) and spec.get("model") == "none"):
@@ -529,8 +547,28 @@ class _Validator:
             self.stack_known = False
             return None
         layer = self.construct(found, params, path)
+        if isinstance(layer, Layer):  # (validation alone can use stand-ins that are not layers)
+            problem = type_problem(layer, thin)
+            if problem:
+                self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+            self.built_layers[path] = layer
         H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
         return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
+
+    def probe_layers(self, layers: list[LayerSpec], geometry: Mapping[str, float], mesh: Mapping[str, Any]) -> None:
+        """Have every layer assemble on a small wall (:mod:`multilayer.wall_probe`); problems at its path.
+
+        Only when every layer was built as a layer of its kind and nothing
+        else is wrong with the stack: a wall cannot be placed otherwise.
+        """
+        if not layers or len(self.built_layers) != len(layers):
+            return
+        objects = [self.built_layers[layer.path] for layer in layers]
+        found = wall_probe.probe(objects, [layer.model for layer in layers], geometry.get("length", 1.0),
+                                 geometry.get("radius", 1.0), mesh.get("order", 2))
+        for index, problems in found.items():
+            layer = layers[index]
+            self.problems.append(Problem(layer.path, MISSING, f"{layer.model}: " + "; ".join(problems)))
 
     def coupler(self, spec: Any, fluid: ModelSpec | None) -> ModelSpec:
         default = "structure-only" if fluid is None else "kinematic-splitting"
