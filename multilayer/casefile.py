@@ -461,9 +461,8 @@ class _Validator:
             return None
         found = self.registry.find(kind, name)
         if found is None:
-            self.problems.append(
-                Problem(f"{path}.model", name, f"no such {kind} plugin", did_you_mean(name, names) or available)
-            )
+            hint = (did_you_mean(name, names) or available) + self.registry.failure_note()
+            self.problems.append(Problem(f"{path}.model", name, f"no such {kind} plugin", hint))
             return None
         params, problems = check_params(spec, found.record.params, path, extra=("model", *extra))
         self.add(problems)

@@ -50,9 +50,13 @@ def import_plugin(spec: str) -> ModuleType:
         raise RegistryError(f"--plugin {spec}: cannot import it ({type(exc).__name__}: {exc})") from None
 
 
-def load_registry(plugins: Sequence[str] = ()) -> Registry:
-    """Installed plugins plus the ``--plugin`` modules."""
-    return Registry.load(extra=[import_plugin(p) for p in plugins])
+def load_registry(plugins: Sequence[str] = (), warn: bool = True) -> Registry:
+    """Installed plugins plus the ``--plugin`` modules.
+
+    An installed plugin that fails to load is skipped, with a warning on
+    stderr when ``warn``.
+    """
+    return Registry.load(extra=[import_plugin(p) for p in plugins], warn=warn)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -181,7 +185,8 @@ def _plugins(registry: Registry, name: str | None) -> int:
             from multilayer.registry import nearest
 
             hint = nearest(name, [r.name for r in entries])
-            print(f"no plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else ""), file=sys.stderr)
+            print(f"no plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else "") + registry.failure_note(),
+                  file=sys.stderr)
             return INVALID
         for entry in chosen:
             print(f"{entry.kind} {entry.name} ({entry.package} {entry.version}): {entry.record.doc}")
