@@ -1,4 +1,4 @@
-"""The ``multilayer`` command: run, validate, plugins, compare, study.
+"""The ``multilayer`` command: run, validate, plugins, check-plugin, compare, study.
 
 Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
 (the problems on stderr, one per line, without a traceback).
@@ -6,6 +6,7 @@ Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
     multilayer validate cases/pulse.toml --set time.dt=5e-5
     multilayer run cases/pulse.toml --out results/pulse
     multilayer plugins --plugin my_layer.py
+    multilayer check-plugin my-layer --plugin my_layer.py
     multilayer compare cases/membrane-mode.toml --vary layers[0].tension=2e4,8e4 --out results/tension
     multilayer study cases/pulse-koiter.toml --vary time.dt=1e-4,5e-5,2.5e-5 --out results/dt-study
 """
@@ -81,6 +82,11 @@ def _parser() -> argparse.ArgumentParser:
     plugins = commands.add_parser("plugins", help="list the available models, or one model's parameters")
     plugins.add_argument("name", nargs="?", help="show the parameters of this model")
     common(plugins, case=False)
+    check = commands.add_parser("check-plugin", help="run the conformance checks of a layer plugin (multilayer.testing)")
+    check.add_argument("name", help="the layer's name, as a case file writes it")
+    check.add_argument("--param", dest="params", action="append", default=[], metavar="KEY=VALUE",
+                       help="a parameter to build the layer with, changing the plugin's example")
+    common(check, case=False)
 
     # -- compare: multilayer.compare ------------------------------------------
     compare = commands.add_parser("compare", help="run variants of a scene side by side and report the differences")
@@ -117,6 +123,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         registry = load_registry(args.plugins)
         if args.command == "plugins":
             return _plugins(registry, args.name)
+        if args.command == "check-plugin":
+            return _check_plugin(registry, args.name, args.params)
         if args.command == "compare":
             from multilayer import compare
 
@@ -199,6 +207,39 @@ def _plugins(registry: Registry, name: str | None) -> int:
              for r in entries]
     print(_table(rows))
     return OK
+
+
+def _check_plugin(registry: Registry, name: str, settings: Sequence[str]) -> int:
+    """``multilayer check-plugin NAME``: 0 when every check passes, 1 when one fails, 2 for an unknown name."""
+    from multilayer.casefile import parse_value
+    from multilayer.registry import nearest
+    from multilayer.testing import check_layer, example_params
+
+    found = registry.find("layer", name)
+    if found is None:
+        other = next((r for r in registry.all() if r.name == name), None)
+        if other is not None:
+            print(f"{name!r} is a {other.kind} plugin; check-plugin checks layer plugins", file=sys.stderr)
+            return INVALID
+        hint = nearest(name, registry.names("layer"))
+        print(f"no layer plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else "")
+              + registry.failure_note(), file=sys.stderr)
+        return INVALID
+    params = example_params(found.record)  # --param changes the plugin's example
+    for item in settings:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            print(f"--param {item!r}: expected KEY=VALUE, e.g. --param young=1e6", file=sys.stderr)
+            return INVALID
+        params[key.strip()] = parse_value(value)
+    kind = "thin" if found.record.thin else "thick"
+    print(f"check-plugin {name} ({found.package} {found.version}), a {kind} layer")
+    results = check_layer(name, params, registry)
+    for result in results:
+        print(f"  {result}")
+    failed = sum(not r.ok for r in results)
+    print(f"{failed} of {len(results)} checks failed" if failed else f"all {len(results)} checks passed")
+    return FAILED if failed else OK
 
 
 def _param_row(param: object) -> tuple[str, ...]:

@@ -77,6 +77,14 @@ class EssentialOutOfRange(Spring):
         return np.array([0, space.ndofs + 3])
 
 
+class NanOnFineMesh(Spring):
+    """Right on a small space, NaN on a fine one: only a run on a real mesh shows it."""
+
+    def forms(self, space):
+        good = super().forms(space)
+        return LayerMatrices(good.mass, good.damping, good.stiffness * (np.nan if space.ndofs > 16 else 1.0))
+
+
 class NoForms(ThinLayer):
     def __init__(self, density: float = 1.0, stiffness: float = 1e4):
         self.density = density
@@ -125,9 +133,11 @@ MISTAKES = [
     ("broken-kind", Band, "the factory returned a thick layer (Band); expected a ThinLayer",
      "the factory returned a thick layer (Band); expected a ThinLayer"),
 ]
-#: mistakes only the conformance kit looks for (a run would start)
+#: mistakes that validation lets through: (name, factory, the kit's check that fails, what it says)
 KIT_ONLY = [
-    ("broken-indefinite", Indefinite, "stiffness is not positive semi-definite: smallest eigenvalue"),
+    ("broken-indefinite", Indefinite, "matrices", "stiffness is not positive semi-definite: smallest eigenvalue"),
+    ("broken-on-fine-mesh", NanOnFineMesh, "coupled-run", "the run failed: setting up the scene failed: "
+     "layers[0] (broken-on-fine-mesh): stiffness has non-finite entries (nan or inf)"),
 ]
 #: schema mistakes: (name, params, what the kit says)
 SCHEMA_MISTAKES = [
