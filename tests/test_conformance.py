@@ -1,11 +1,15 @@
 """The conformance kit (multilayer.testing) and `multilayer check-plugin`: every layer passes, each mistake fails."""
 
+from pathlib import Path
+
 import broken_layers
+import numpy as np
 import pytest
 
-from multilayer.cli import main
+from multilayer.cli import import_plugin, main
 from multilayer.records import LayerPlugin, Param
 from multilayer.testing import CHECKS, LayerConformance, assert_layer_conforms, check_layer, example_params
+from multilayer.wall import WallSpace
 
 
 class TestWaveMembrane(LayerConformance):
@@ -118,3 +122,30 @@ def test_check_plugin_takes_parameters(capsys):
 def test_check_plugin_of_an_unknown_name_exits_2(name, words, capsys):
     assert main(["check-plugin", name]) == 2
     assert words in capsys.readouterr().err
+
+
+# -- the thick layer of docs/plugins.md --------------------------------------------------
+
+DOCS = Path(__file__).parents[1] / "docs" / "plugins.md"
+THICK_EXAMPLE = next(block.split("```", 1)[0] for block in DOCS.read_text().split("```python\n")[1:]
+                     if "class KelvinVoigtBand" in block)
+
+
+@pytest.mark.parametrize("params", [[], ["--param", "ends=sliding"]], ids=["clamped", "sliding"])
+def test_the_thick_layer_of_the_docs_passes_check_plugin(tmp_path, capsys, params):
+    path = tmp_path / "kv_band.py"
+    path.write_text(THICK_EXAMPLE)
+    assert main(["check-plugin", "kelvin-voigt-band", "--plugin", str(path), *params]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "all 5 checks passed"
+
+
+def test_sliding_ends_of_the_docs_hold_only_d_z(tmp_path):
+    path = tmp_path / "kv_band_module.py"
+    path.write_text(THICK_EXAMPLE)
+    module = import_plugin(str(path))
+    band = module.KelvinVoigtBand(1.1, 0.1, 7.5e5, 0.45, 0.0, "sliding")
+    space = WallSpace.build([band], 6.0, 0.5, 4, 2, [2]).bands[0]
+    held = band.essential_dofs(space)
+    z_dofs, r_dofs = space.basis.split_indices()
+    ends = np.union1d(space.side_dofs("z=0"), space.side_dofs("z=L"))
+    assert np.array_equal(held, np.intersect1d(ends, z_dofs)) and not np.intersect1d(held, r_dofs).size
