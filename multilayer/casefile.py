@@ -14,10 +14,13 @@ import hashlib
 import json
 import re
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+import attrs
+
+from multilayer import resources, wall_probe
 from multilayer.case import (
     Case,
     Geometry,
@@ -32,14 +35,18 @@ from multilayer.case import (
     TimeSpec,
 )
 from multilayer.formula import Formula, FormulaError
+from multilayer.formula_domain import Domain, defect
+from multilayer.interfaces import Layer
+from multilayer.layer_checks import abstract_problem, raised, type_problem
 from multilayer.linsolve import BACKENDS
-from multilayer.loads import load_from_spec
+from multilayer.loads import FormulaPressure, load_from_spec
+from multilayer.partial import NotBuilt, Unbuilt
 from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
 from multilayer.records import Param
 from multilayer.registry import Registry
 
-__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems", "key_steps",
-           "parse_value"]
+__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems",
+           "coupler_objections", "key_steps", "parse_value"]
 
 SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver")
 
@@ -132,11 +139,7 @@ def validate_data(data: Mapping[str, Any], base_dir: Path | str = ".", registry:
         Listing every problem found.
     """
     registry = registry or Registry.load()
-    case = _Validator(registry, Path(base_dir)).case(data)
-    problems = coupler_problems(case, registry)
-    if problems:
-        raise CaseError(problems)
-    return case
+    return _Validator(registry, Path(base_dir)).case(data)
 
 
 def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
@@ -144,17 +147,31 @@ def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
 
     The coupler factory is called with the case's coupler parameters; a
     ``ValueError`` it raises and every string its ``check_case(case)``
-    returns become problems at ``coupler.model``.
+    returns become problems at ``coupler.model``.  (Validation asks the
+    coupler itself, in the same pass as every other check.)
     """
     record = registry.get("coupler", case.coupler.model).record
     try:
         coupler = record.factory(**case.coupler.params)
     except ValueError as exc:
         return [Problem(case.coupler.path, MISSING, f"{case.coupler.model}: {exc}")]
+    return coupler_objections(coupler, case)
+
+
+def coupler_objections(coupler: Any, case: Case) -> list[Problem]:
+    """Every string ``coupler.check_case(case)`` returns, as a problem at ``coupler.model``.
+
+    ``case`` may have placeholders for parts that could not be built
+    (:mod:`multilayer.partial`); a coupler that reads one is not asked now.
+    """
     check = getattr(coupler, "check_case", None)
     if check is None:
         return []
-    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in check(case)]
+    try:
+        reasons = list(check(case))
+    except NotBuilt:
+        return []
+    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in reasons]
 
 
 # -- overrides -------------------------------------------------------------
@@ -271,6 +288,10 @@ class _Validator:
         self.problems: list[Problem] = []
         #: False once a layer is invalid: then H and the line count are unknown
         self.stack_known = True
+        #: the coupler built from the case, when it could be: asked for its objections
+        self.coupler_object: Any = None
+        #: the layer objects built from the case, by key path
+        self.built_layers: dict[str, Layer] = {}
 
     def add(self, problems: Iterable[Problem]) -> None:
         self.problems.extend(problems)
@@ -284,6 +305,14 @@ class _Validator:
         self.add(problems)
         return values
 
+    def mark(self) -> int:
+        """How many problems there are so far: a part is built when none were added since its mark."""
+        return len(self.problems)
+
+    def part(self, where: str, mark: int, build: Callable[[], Any]) -> Any:
+        """``build()`` when no problem was added since ``mark``, else a placeholder (:class:`Unbuilt`)."""
+        return build() if len(self.problems) == mark else Unbuilt(where)
+
     def case(self, data: Mapping[str, Any]) -> Case:
         if not isinstance(data, Mapping):
             raise CaseError([Problem("case", data, "expected a table of sections")])
@@ -292,22 +321,47 @@ class _Validator:
             for key, value in data.items()
             if key not in SECTIONS
         )
+        parts: dict[str, Any] = {}
+        mark = self.mark()
         title = data.get("title", "")
         if not isinstance(title, str):
             self.problems.append(Problem("title", title, "expected a string"))
+        parts["title"] = self.part("title", mark, lambda: title)
+        mark = self.mark()
         geometry = self.section(data, "geometry", GEOMETRY)
+        parts["geometry"] = self.part("geometry", mark, lambda: Geometry(**geometry))
+        mark = self.mark()
         mesh = self.section(data, "mesh", MESH)
+        parts["mesh"] = self.part("mesh", mark, lambda: MeshSpec(**mesh))
+        mark = self.mark()
         time = self.section(data, "time", TIME)
         self.check_steps(time)
+        parts["time"] = self.part("time", mark, lambda: TimeSpec(**time))
+        mark = self.mark()
         fluid = self.fluid(data.get("fluid"))
-        layers, H = self.layers(data.get("layers", MISSING), fluid)
-        coupler = self.coupler(data.get("coupler", MISSING), fluid)
-        # stand-ins keep formulas checkable while geometry has its own problems
+        parts["fluid"] = self.part("fluid", mark, lambda: fluid)
+        mark = self.mark()
+        layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
+        self.check_size(mesh, fluid, layers)
+        if self.mark() == mark:
+            self.probe_layers(layers, geometry, mesh)
+        coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
+        # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
-        loads = self.loads(data.get("loads", {}), constants)
+        end = time.get("end", 1.0)
+        loads = parts["loads"] = self.loads(data.get("loads", {}), constants, end)
+        mark = self.mark()
         initial = self.initial(data.get("initial", {}), constants)
+        parts["initial"] = self.part("initial", mark, lambda: initial)
+        mark = self.mark()
         output = self.output(data.get("output", {}), constants, fluid, layers)
+        parts["output"] = self.part("output", mark, lambda: output)
+        mark = self.mark()
         solver = self.section(data, "solver", SOLVER)
+        parts["solver"] = self.part("solver", mark, lambda: solver["linear"])
+        parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
+        case = Case(**parts)
+        self.add(self.objections(case))
         if self.problems:
             raise CaseError(self.problems)
 
@@ -341,33 +395,53 @@ class _Validator:
             "solver": solver,
         }
         canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
-        return Case(
-            title=title,
-            geometry=Geometry(**geometry),
-            mesh=MeshSpec(**mesh),
-            time=TimeSpec(**time),
-            fluid=fluid,
-            layers=tuple(layers),
-            coupler=coupler,
-            loads=loads,
-            initial=initial,
-            output=output,
-            solver=solver["linear"],
-            limits=Limits(solver["max_displacement"], solver["energy_margin"]),
-            resolved=resolved,
-            digest=hashlib.sha256(canonical.encode()).hexdigest(),
-            base_dir=str(self.base_dir.resolve()),
-        )
+        return attrs.evolve(case, resolved=resolved, digest=hashlib.sha256(canonical.encode()).hexdigest(),
+                            base_dir=str(self.base_dir.resolve()))
+
+    def objections(self, case: Case) -> list[Problem]:
+        """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""
+        if self.coupler_object is None:
+            return []
+        return coupler_objections(self.coupler_object, case)
 
     def check_steps(self, time: Mapping[str, float]) -> None:
         if "end" not in time or "dt" not in time:
             return
         steps = time["end"] / time["dt"]
-        if round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
+        if not steps <= resources.MAX_STEPS:  # also end/dt = inf
+            self.problems.append(
+                Problem("time.dt", time["dt"], f"{steps:.3g} steps to time.end = {time['end']:g}; expected at most "
+                        f"{resources.MAX_STEPS:.0e} steps", "is dt in seconds?")
+            )
+        elif round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
             self.problems.append(
                 Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
                         f"end/dt = {steps:.6g}")
             )
+
+    def check_size(self, mesh: Mapping[str, Any], fluid: ModelSpec | None, layers: list[LayerSpec]) -> None:
+        """Refuse a case whose unknowns would not fit in the machine's available memory (:mod:`multilayer.resources`).
+
+        The problem is reported at the largest of the size keys (``mesh.nz``,
+        ``mesh.nr``, a band's ``cells``).
+        """
+        if not {"nz", "nr", "order"} <= mesh.keys():
+            return
+        bands = [layer for layer in layers if not layer.thin and layer.cells is not None]
+        need = resources.need(mesh["nz"], mesh["nr"], mesh["order"], fluid=fluid is not None, wall=bool(layers),
+                              band_cells=[layer.cells for layer in bands])
+        available = resources.available_memory()
+        if available is None or need.memory <= available:
+            return
+        sizes = [("mesh.nz", mesh["nz"])] + ([("mesh.nr", mesh["nr"])] if fluid is not None else [])
+        sizes += [(f"{layer.path}.cells", layer.cells) for layer in bands]
+        path, value = max(sizes, key=lambda item: item[1])
+        parts = ", ".join(f"{part} {n:.3g}" for part, n in (("fluid", need.fluid), ("wall", need.wall)) if n)
+        self.problems.append(Problem(
+            path, value,
+            f"the case needs about {resources.gigabytes(need.memory)} of memory ({need.dofs:.3g} unknowns: {parts}), "
+            f"this machine has {resources.gigabytes(available)} available",
+            "use a coarser mesh (see docs/case-files.md, Size limits)"))
 
     def model(self, kind: str, spec: Any, path: str, extra: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any], bool] | None:
         """(registered plugin, checked params, params ok) of a ``{model = ..., ...}`` table.
@@ -388,22 +462,32 @@ class _Validator:
             return None
         found = self.registry.find(kind, name)
         if found is None:
-            self.problems.append(
-                Problem(f"{path}.model", name, f"no such {kind} plugin", did_you_mean(name, names) or available)
-            )
+            hint = (did_you_mean(name, names) or available) + self.registry.failure_note()
+            self.problems.append(Problem(f"{path}.model", name, f"no such {kind} plugin", hint))
             return None
         params, problems = check_params(spec, found.record.params, path, extra=("model", *extra))
         self.add(problems)
         return found, params, not problems
 
     def construct(self, found: Any, params: dict[str, Any], path: str) -> Any:
-        """Build the plugin once: only its factory can check constraints across parameters."""
+        """Build the plugin once: only its factory can check constraints across parameters.
+
+        A ``ValueError`` is the factory's verdict on the parameters; any other
+        exception, or a class with unimplemented abstract methods, is a
+        mistake in the plugin, reported at ``path`` with the plugin's name.
+        """
+        problem = abstract_problem(found.record.factory)
+        if problem:
+            self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+            return None
         try:
             return found.record.factory(**params)
         except ValueError as exc:
             message = str(exc) if str(exc).startswith(found.name) else f"{found.name}: {exc}"
             self.problems.append(Problem(path, MISSING, message))
-            return None
+        except Exception as exc:  # the plugin's own code failed, not the case
+            self.problems.append(Problem(path, MISSING, f"{found.name}: the plugin's factory raised {raised(exc)}"))
+        return None
 
     def fluid(self, spec: Any) -> ModelSpec | None:
         if spec is None or spec == "none" or (isinstance(spec, Mapping) and spec.get("model") == "none"):
@@ -417,40 +501,74 @@ class _Validator:
             self.construct(found, params, "fluid")
         return ModelSpec(path="fluid", model=found.name, params=params)
 
-    def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float]:
+    def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float, Any]:
+        """The valid layers, the thickness H of their bands, and the stack as a part of the case.
+
+        The part is a tuple with a placeholder for each invalid layer, or a
+        placeholder for the whole stack when ``layers`` itself is wrong.
+        """
         if specs is MISSING:
             specs = []
         if not isinstance(specs, list):
             self.problems.append(Problem("layers", specs, "expected an array of tables [[layers]]"))
-            return [], 0.0
+            return [], 0.0, Unbuilt("layers")
         if not specs and fluid is None:
             self.problems.append(Problem("layers", MISSING, "missing; a case without a fluid needs at least one [[layers]]"))
-        layers, H = [], 0.0
+            return [], 0.0, Unbuilt("layers")
+        layers, H, part = [], 0.0, []
         for i, spec in enumerate(specs):
             path = f"layers[{i}]"
-            spec = {"model": spec} if isinstance(spec, str) else spec
-            checked = self.model("layer", spec, path, extra=("cells",))
-            if checked is None:
-                self.stack_known = False
-                continue
-            found, params, ok = checked
-            thin = found.record.thin
-            cells = None
-            if thin and "cells" in spec:
-                self.problems.append(Problem(f"{path}.cells", spec["cells"], "only a thick layer has radial cells",
-                                             f"{found.name!r} is a thin layer"))
-            elif not thin:
-                values, problems = check_params({k: spec[k] for k in ("cells",) if k in spec}, (CELLS,), path)
-                self.add(problems)
-                cells = values.get("cells")
-            if not ok:
-                self.stack_known = False
-                continue
-            layer = self.construct(found, params, path)
-            if not thin:
-                H += float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
-            layers.append(LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells))
-        return layers, H
+            mark = self.mark()
+            found = self.layer(spec, path)
+            if found is not None:
+                layers.append(found[0])
+                H += found[1]
+            part.append(self.part(path, mark, lambda: layers[-1]))
+        return layers, H, tuple(part)
+
+    def layer(self, spec: Any, path: str) -> tuple[LayerSpec, float] | None:
+        """A valid layer and the thickness of its band (0 for a thin layer), or None."""
+        spec = {"model": spec} if isinstance(spec, str) else spec
+        checked = self.model("layer", spec, path, extra=("cells",))
+        if checked is None:
+            self.stack_known = False
+            return None
+        found, params, ok = checked
+        thin = found.record.thin
+        cells = None
+        if thin and "cells" in spec:
+            self.problems.append(Problem(f"{path}.cells", spec["cells"], "only a thick layer has radial cells",
+                                         f"{found.name!r} is a thin layer"))
+        elif not thin:
+            values, problems = check_params({k: spec[k] for k in ("cells",) if k in spec}, (CELLS,), path)
+            self.add(problems)
+            cells = values.get("cells")
+        if not ok:
+            self.stack_known = False
+            return None
+        layer = self.construct(found, params, path)
+        if isinstance(layer, Layer):  # (validation alone can use stand-ins that are not layers)
+            problem = type_problem(layer, thin)
+            if problem:
+                self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+            self.built_layers[path] = layer
+        H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
+        return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
+
+    def probe_layers(self, layers: list[LayerSpec], geometry: Mapping[str, float], mesh: Mapping[str, Any]) -> None:
+        """Have every layer assemble on a small wall (:mod:`multilayer.wall_probe`); problems at its path.
+
+        Only when every layer was built as a layer of its kind and nothing
+        else is wrong with the stack: a wall cannot be placed otherwise.
+        """
+        if not layers or len(self.built_layers) != len(layers):
+            return
+        objects = [self.built_layers[layer.path] for layer in layers]
+        found = wall_probe.probe(objects, [layer.model for layer in layers], geometry.get("length", 1.0),
+                                 geometry.get("radius", 1.0), mesh.get("order", 2))
+        for index, problems in found.items():
+            layer = layers[index]
+            self.problems.append(Problem(layer.path, MISSING, f"{layer.model}: " + "; ".join(problems)))
 
     def coupler(self, spec: Any, fluid: ModelSpec | None) -> ModelSpec:
         default = "structure-only" if fluid is None else "kinematic-splitting"
@@ -461,15 +579,27 @@ class _Validator:
         checked = self.model("coupler", spec, "coupler")
         if checked is None:
             return ModelSpec(path="coupler", model="?")
-        found, params, _ = checked
+        found, params, ok = checked
+        if ok:
+            self.coupler_object = self.construct(found, params, "coupler")
         return ModelSpec(path="coupler", model=found.name, params=params)
 
-    def formula(self, expr: Any, path: str, constants: Mapping[str, float], variables: tuple[str, ...]) -> Formula:
+    def formula(self, expr: Any, path: str, constants: Mapping[str, float], domain: Domain) -> Formula:
+        """The formula at ``path``, checked, then judged on ``domain`` (the ranges of its variables)."""
+        variables = tuple(domain.ranges)
         try:
-            return Formula.parse(expr, constants, variables)
+            formula = Formula.parse(expr, constants, variables)
         except FormulaError as exc:
             self.problems.append(Problem(path, expr, f"invalid formula in {', '.join(variables)}: {exc}"))
             return Formula.zero()
+        self.judge(formula, path, domain)
+        return formula
+
+    def judge(self, formula: Formula, path: str, domain: Domain) -> None:
+        """A problem at ``path`` when ``formula`` is not a finite real number somewhere on ``domain``."""
+        reason = defect(formula, domain)
+        if reason is not None:
+            self.problems.append(Problem(path, str(formula), f"{reason}; expected a finite real value for every {domain}"))
 
     def table(self, data: Any, path: str, keys: Iterable[str]) -> Mapping[str, Any]:
         """A table whose keys must be among ``keys``; {} (with a problem) if it is not a table."""
@@ -482,27 +612,35 @@ class _Validator:
         )
         return data
 
-    def loads(self, data: Any, constants: Mapping[str, float]) -> Loads:
+    def loads(self, data: Any, constants: Mapping[str, float], end: float) -> Loads:
         data = self.table(data, "loads", (*LOAD_KEYS, "wall_motion"))
         pressures = {}
         for key in LOAD_KEYS:
+            spec, mark = data.get(key, 0.0), self.mark()
             try:
-                pressures[key] = load_from_spec(data.get(key, 0.0), f"loads.{key}", self.base_dir, constants)
+                load = load_from_spec(spec, f"loads.{key}", self.base_dir, constants)
             except CaseError as exc:
                 self.add(exc.problems)
-                pressures[key] = load_from_spec(0.0, f"loads.{key}")
-        motion = data.get("wall_motion")
-        wall_motion = None if motion is None else self.formula(motion, "loads.wall_motion", constants, ("t", "z"))
-        return Loads(**pressures, wall_motion=wall_motion)
+                load = None
+            if isinstance(load, FormulaPressure):
+                where = f"loads.{key}" if isinstance(spec, str) else f"loads.{key}.expr"
+                self.judge(load.formula, where, Domain({"t": (0.0, end)}))
+            pressures[key] = self.part(f"loads.{key}", mark, lambda: load)
+        motion, mark = data.get("wall_motion"), self.mark()
+        wall_motion = None if motion is None else self.formula(
+            motion, "loads.wall_motion", constants, Domain({"t": (0.0, end), "z": (0.0, constants["L"])}))
+        return Loads(**pressures, wall_motion=self.part("loads.wall_motion", mark, lambda: wall_motion))
 
     def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
         data = self.table(data, "initial", ("displacement", "velocity"))
         fields = {}
         for name in ("displacement", "velocity"):
             part = self.table(data.get(name, {}), f"initial.{name}", ("r", "z"))
+            # evaluated on the wall: z along the channel, r across every band (the lumen line alone without one)
+            wall = Domain({"z": (0.0, constants["L"]), "r": (constants["R"], constants["R"] + constants["H"])})
             for component in ("r", "z"):
                 fields[f"{name}_{component}"] = self.formula(
-                    part.get(component, "0"), f"initial.{name}.{component}", constants, ("z", "r")
+                    part.get(component, "0"), f"initial.{name}.{component}", constants, wall
                 )
         return Initial(**fields)
 

@@ -1,4 +1,4 @@
-"""The ``multilayer`` command: run, validate, plugins, compare, study, stability.
+"""The ``multilayer`` command: run, resume, plot, validate, plugins, check-plugin, compare, study, stability.
 
 Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
 (the problems on stderr, one per line, without a traceback).
@@ -6,6 +6,7 @@ Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
     multilayer validate cases/pulse.toml --set time.dt=5e-5
     multilayer run cases/pulse.toml --out results/pulse
     multilayer plugins --plugin my_layer.py
+    multilayer check-plugin my-layer --plugin my_layer.py
     multilayer compare cases/membrane-mode.toml --vary layers[0].tension=2e4,8e4 --out results/tension
     multilayer study cases/pulse-koiter.toml --vary time.dt=1e-4,5e-5,2.5e-5 --out results/dt-study
     multilayer stability cases/pulse-koiter.toml --couplers kinematic-splitting,monolithic --out results/stability
@@ -52,9 +53,13 @@ def import_plugin(spec: str) -> ModuleType:
         raise RegistryError(f"--plugin {spec}: cannot import it ({type(exc).__name__}: {exc})") from None
 
 
-def load_registry(plugins: Sequence[str] = ()) -> Registry:
-    """Installed plugins plus the ``--plugin`` modules."""
-    return Registry.load(extra=[import_plugin(p) for p in plugins])
+def load_registry(plugins: Sequence[str] = (), warn: bool = True) -> Registry:
+    """Installed plugins plus the ``--plugin`` modules.
+
+    An installed plugin that fails to load is skipped, with a warning on
+    stderr when ``warn``.
+    """
+    return Registry.load(extra=[import_plugin(p) for p in plugins], warn=warn)
 
 
 def run_options(p: argparse.ArgumentParser, checkpoints: bool = True) -> None:
@@ -99,6 +104,11 @@ def _parser() -> argparse.ArgumentParser:
     plugins = commands.add_parser("plugins", help="list the available models, or one model's parameters")
     plugins.add_argument("name", nargs="?", help="show the parameters of this model")
     common(plugins, case=False)
+    check = commands.add_parser("check-plugin", help="run the conformance checks of a layer plugin (multilayer.testing)")
+    check.add_argument("name", help="the layer's name, as a case file writes it")
+    check.add_argument("--param", dest="params", action="append", default=[], metavar="KEY=VALUE",
+                       help="a parameter to build the layer with, changing the plugin's example")
+    common(check, case=False)
 
     # -- compare: multilayer.compare ------------------------------------------
     compare = commands.add_parser("compare", help="run variants of a scene side by side and report the differences")
@@ -160,6 +170,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _plot(args.out)
         if args.command == "resume":
             return _run(None, args.out, registry, args)
+        if args.command == "check-plugin":
+            return _check_plugin(registry, args.name, args.params)
         if args.command == "compare":
             from multilayer import compare
 
@@ -282,7 +294,8 @@ def _plugins(registry: Registry, name: str | None) -> int:
             from multilayer.registry import nearest
 
             hint = nearest(name, [r.name for r in entries])
-            print(f"no plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else ""), file=sys.stderr)
+            print(f"no plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else "") + registry.failure_note(),
+                  file=sys.stderr)
             return INVALID
         for entry in chosen:
             print(f"{entry.kind} {entry.name} ({entry.package} {entry.version}): {entry.record.doc}")
@@ -295,6 +308,39 @@ def _plugins(registry: Registry, name: str | None) -> int:
              for r in entries]
     print(_table(rows))
     return OK
+
+
+def _check_plugin(registry: Registry, name: str, settings: Sequence[str]) -> int:
+    """``multilayer check-plugin NAME``: 0 when every check passes, 1 when one fails, 2 for an unknown name."""
+    from multilayer.casefile import parse_value
+    from multilayer.registry import nearest
+    from multilayer.testing import check_layer, example_params
+
+    found = registry.find("layer", name)
+    if found is None:
+        other = next((r for r in registry.all() if r.name == name), None)
+        if other is not None:
+            print(f"{name!r} is a {other.kind} plugin; check-plugin checks layer plugins", file=sys.stderr)
+            return INVALID
+        hint = nearest(name, registry.names("layer"))
+        print(f"no layer plugin named {name!r}" + (f"; did you mean {hint!r}?" if hint else "")
+              + registry.failure_note(), file=sys.stderr)
+        return INVALID
+    params = example_params(found.record)  # --param changes the plugin's example
+    for item in settings:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            print(f"--param {item!r}: expected KEY=VALUE, e.g. --param young=1e6", file=sys.stderr)
+            return INVALID
+        params[key.strip()] = parse_value(value)
+    kind = "thin" if found.record.thin else "thick"
+    print(f"check-plugin {name} ({found.package} {found.version}), a {kind} layer")
+    results = check_layer(name, params, registry)
+    for result in results:
+        print(f"  {result}")
+    failed = sum(not r.ok for r in results)
+    print(f"{failed} of {len(results)} checks failed" if failed else f"all {len(results)} checks passed")
+    return FAILED if failed else OK
 
 
 def _param_row(param: object) -> tuple[str, ...]:

@@ -123,6 +123,11 @@ class BandSpace:
         return self.r_outer - self.r_inner
 
     @property
+    def ndofs(self) -> int:
+        """Size of the numbering the band's matrices live in: the whole wall's, so (ndofs, ndofs)."""
+        return int(self.basis.N)
+
+    @property
     def dofs(self) -> np.ndarray:
         """Every DOF touched by the band."""
         return np.unique(self.basis.element_dofs)

@@ -85,6 +85,8 @@ def describe(param: Param) -> str:
     'a number > -1.0 and < 0.5'
     >>> describe(Param("order", type=int, choices=(1, 2)))
     'one of 1, 2'
+    >>> describe(Param("young", unit="dyn/cm²", gt=0)), describe(Param("poisson", unit="1", lt=0.5))
+    ('a number > 0 (dyn/cm²)', 'a number < 0.5')
     """
     if param.choices is not None:
         return "one of " + ", ".join(show(c) for c in param.choices)
@@ -92,7 +94,7 @@ def describe(param: Param) -> str:
         param.type, param.type.__name__
     )
     bounds = param.bounds_text()
-    unit = f" ({param.unit})" if param.unit else ""
+    unit = f" ({param.unit})" if param.unit and param.unit != "1" else ""
     return f"{noun} {bounds}{unit}" if bounds else f"{noun}{unit}"
 
 

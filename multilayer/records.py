@@ -22,7 +22,8 @@ class Param:
     symbol : str
         The symbol of the scheme (``E``, ``ρ₁``, ``C1``), for docs.
     unit : str
-        Physical unit (CGS), e.g. ``dyn/cm²``.
+        Physical unit (CGS), e.g. ``dyn/cm²``; ``"1"`` for a dimensionless
+        number (a ratio), empty for a count, a name or a switch.
     default : object
         Default value, or :data:`REQUIRED`; ``None`` means optional with no value.
     type : type
@@ -87,10 +88,16 @@ class PluginRecord:
 
 @attrs.frozen
 class LayerPlugin(PluginRecord):
-    """A wall-layer model. ``thin`` is True for an interface-line layer."""
+    """A wall-layer model. ``thin`` is True for an interface-line layer.
+
+    ``example`` is a typical set of parameters (keyword only): the
+    conformance kit (:mod:`multilayer.testing`, ``multilayer check-plugin``)
+    builds the layer with it.
+    """
 
     kind: ClassVar[str] = "layer"
     thin: bool = True
+    example: dict[str, Any] | None = attrs.field(default=None, kw_only=True, eq=False)
 
 
 @attrs.frozen

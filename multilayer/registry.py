@@ -6,15 +6,23 @@ a caller registers by hand (a test module, a notebook), then
 ``check_pending``.  Each hook implementation is called on its own so that a
 record is always attributed to the package that provided it; pluggy's call
 order is never relied on.
+
+An installed plugin that cannot be loaded — its module fails to import, or
+pluggy rejects its hooks — is skipped with one warning line on stderr
+(:class:`FailedPlugin`), so that it does not break every command for cases
+that do not use it; :attr:`Registry.failed` keeps it for the messages of a
+case that names one of its models.
 """
 
 from __future__ import annotations
 
 import difflib
 import importlib.metadata
+import sys
 from collections.abc import Iterable
 from types import ModuleType
 
+import attrs
 import pluggy
 
 from multilayer import hookspecs
@@ -29,6 +37,59 @@ HOOKS = {
 
 class RegistryError(Exception):
     """A plugin set that cannot be used (two plugins claim one name, a bad record)."""
+
+
+@attrs.frozen
+class FailedPlugin:
+    """An installed plugin (entry point) that could not be loaded, and why.
+
+    >>> print(FailedPlugin("my-layer", "my_package.layer", "my-package 1.0", "ModuleNotFoundError: No module named 'x'"))
+    plugin entry point 'my-layer' (my_package.layer, from my-package 1.0) failed to load and is skipped: \
+ModuleNotFoundError: No module named 'x'
+    """
+
+    name: str  #: the entry point's name
+    value: str  #: what it points at, ``module[:attribute]``
+    package: str  #: distribution name and version
+    error: str  #: the exception, in one line
+
+    def __str__(self) -> str:
+        return (f"plugin entry point {self.name!r} ({self.value}, from {self.package}) failed to load and is "
+                f"skipped: {self.error}")
+
+
+#: entry points already reported in this process: each is reported once, however often plugins are loaded
+_REPORTED: set[tuple[str, str]] = set()
+
+
+def _report(failed: FailedPlugin) -> None:
+    key = (failed.name, failed.value)
+    if key not in _REPORTED:
+        _REPORTED.add(key)
+        print(f"multilayer: warning: {failed}", file=sys.stderr)
+
+
+def _load_entry_points(pm: pluggy.PluginManager) -> tuple[dict[int, tuple[str, str]], list[FailedPlugin]]:
+    """Register every module of the ``multilayer`` entry-point group that loads.
+
+    Returns the (package, version) of each registered plugin by ``id`` and
+    the entry points that failed to load.
+    """
+    dists: dict[int, tuple[str, str]] = {}
+    failed: list[FailedPlugin] = []
+    for dist in importlib.metadata.distributions():
+        for ep in dist.entry_points:
+            if ep.group != hookspecs.PROJECT or pm.get_plugin(ep.name) or pm.is_blocked(ep.name):
+                continue
+            name, version = dist.metadata["Name"], dist.version
+            try:
+                plugin = ep.load()
+                pm.register(plugin, name=ep.name)
+            except Exception as exc:  # a third party's module: any error means "cannot load it"
+                failed.append(FailedPlugin(ep.name, ep.value, f"{name} {version}", f"{type(exc).__name__}: {exc}"))
+                continue
+            dists[id(plugin)] = (name, version)
+    return dists, failed
 
 
 def nearest(name: str, candidates: Iterable[str]) -> str | None:
@@ -48,10 +109,9 @@ def nearest(name: str, candidates: Iterable[str]) -> str | None:
     return None
 
 
-def _distribution_of(pm: pluggy.PluginManager, plugin: object) -> tuple[str, str]:
-    for plug, dist in pm.list_plugin_distinfo():
-        if plug is plugin:
-            return dist.project_name, dist.version
+def _distribution_of(dists: dict[int, tuple[str, str]], plugin: object) -> tuple[str, str]:
+    if id(plugin) in dists:
+        return dists[id(plugin)]
     module = plugin.__name__ if isinstance(plugin, ModuleType) else type(plugin).__module__
     package = module.split(".")[0]
     try:
@@ -70,29 +130,54 @@ class Registry:
     'multilayer'
     """
 
-    def __init__(self, pm: pluggy.PluginManager):
+    def __init__(self, pm: pluggy.PluginManager, dists: dict[int, tuple[str, str]] | None = None,
+                 failed: Iterable[FailedPlugin] = ()):
         self.pm = pm
+        self._dists = dists or {}
+        #: installed plugins that could not be loaded (skipped)
+        self.failed: list[FailedPlugin] = list(failed)
         self._by_kind: dict[str, dict[str, Registered]] = {}
         self._collect()
 
     @classmethod
-    def load(cls, extra: Iterable[object] = (), entry_points: bool = True) -> Registry:
-        """Entry-point plugins plus ``extra`` plugin objects registered by hand."""
+    def load(cls, extra: Iterable[object] = (), entry_points: bool = True, warn: bool = True) -> Registry:
+        """Entry-point plugins plus ``extra`` plugin objects registered by hand.
+
+        An entry point that fails to load is skipped and, with ``warn``,
+        reported on stderr (once per process).  A plugin in ``extra`` that
+        pluggy rejects raises :class:`RegistryError`: it was asked for.
+        """
         pm = pluggy.PluginManager(hookspecs.PROJECT)
         pm.add_hookspecs(hookspecs)
-        if entry_points:
-            pm.load_setuptools_entrypoints(hookspecs.PROJECT)
+        dists, failed = _load_entry_points(pm) if entry_points else ({}, [])
+        extra = list(extra)
         for plugin in extra:
             if not pm.is_registered(plugin):
-                pm.register(plugin)
-        pm.check_pending()
-        return cls(pm)
+                try:
+                    pm.register(plugin)
+                except (ValueError, pluggy.PluginValidationError) as exc:
+                    raise RegistryError(f"cannot register {_plugin_name(plugin)}: {exc}") from None
+        while True:
+            try:
+                pm.check_pending()
+                break
+            except pluggy.PluginValidationError as exc:  # a hook of no known name
+                if any(exc.plugin is plugin for plugin in extra):
+                    raise RegistryError(f"{_plugin_name(exc.plugin)}: {exc}") from None
+                name = pm.get_name(exc.plugin)
+                pm.unregister(exc.plugin)
+                failed.append(FailedPlugin(name, _plugin_name(exc.plugin), " ".join(dists.pop(id(exc.plugin), ("?",))),
+                                           f"PluginValidationError: {exc}"))
+        if warn:
+            for failure in failed:
+                _report(failure)
+        return cls(pm, dists, failed)
 
     def _collect(self) -> None:
         for kind, hook_name in HOOKS.items():
             table: dict[str, Registered] = {}
             for impl in getattr(self.pm.hook, hook_name).get_hookimpls():
-                package, version = _distribution_of(self.pm, impl.plugin)
+                package, version = _distribution_of(self._dists, impl.plugin)
                 for record in impl.function() or ():
                     if not isinstance(record, PluginRecord) or record.kind != kind:
                         raise RegistryError(
@@ -123,8 +208,20 @@ class Registry:
             msg = f"no {kind} plugin named {name!r}"
             if hint:
                 msg += f"; did you mean {hint!r}?"
-            raise KeyError(msg)
+            raise KeyError(msg + self.failure_note())
         return found
+
+    def failure_note(self) -> str:
+        """``"; note: plugin entry point 'x' (...) failed to load ..."`` when one did, else ``""``.
+
+        Added to the message of a model name that is not found: the model may
+        be one of the plugin's.
+        """
+        return "".join(f"; note: {failure}" for failure in self.failed)
 
     def all(self) -> list[Registered]:
         return [r for kind in HOOKS for r in self._by_kind[kind].values()]
+
+
+def _plugin_name(plugin: object) -> str:
+    return plugin.__name__ if isinstance(plugin, ModuleType) else repr(plugin)

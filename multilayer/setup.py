@@ -18,6 +18,7 @@ import numpy as np
 
 from multilayer.case import Case, Probe
 from multilayer.interfaces import Coupler, Fluid, Layer
+from multilayer.layer_checks import LayerError, abstract_problem, raised, type_problem
 from multilayer.linsolve import SolverStats
 from multilayer.registry import Registry
 from multilayer.state import State, WallState
@@ -27,6 +28,29 @@ from multilayer.wall import LUMEN, Stack, WallSpace
 
 def build_model(registry: Registry, kind: str, spec) -> Any:
     return registry.get(kind, spec.model).record.factory(**dict(spec.params))
+
+
+def build_layer(registry: Registry, spec) -> Layer:
+    """The layer of ``spec``, checked to be a layer of the kind its plugin declares.
+
+    Raises
+    ------
+    LayerError
+        Naming the layer when its factory fails or returns something else.
+    """
+    where = f"{spec.path} ({spec.model})"
+    record = registry.get("layer", spec.model).record
+    problem = abstract_problem(record.factory)
+    if problem:
+        raise LayerError(where, [problem])
+    try:
+        layer = record.factory(**dict(spec.params))
+    except Exception as exc:  # the plugin's own code
+        raise LayerError(where, [f"the factory raised {raised(exc)}"]) from exc
+    problem = type_problem(layer, record.thin)
+    if problem:
+        raise LayerError(where, [problem])
+    return layer
 
 
 @attrs.frozen(eq=False)
@@ -46,13 +70,14 @@ class Setup:
     def build(cls, case: Case, registry: Registry) -> Setup:
         """Build the models, the wall and (in the coupler's wall mode) the fluid's discretization."""
         t0 = time.perf_counter()
-        layers = [build_model(registry, "layer", spec) for spec in case.layers]
+        layers = [build_layer(registry, spec) for spec in case.layers]
         coupler = build_model(registry, "coupler", case.coupler)
         fluid = build_model(registry, "fluid", case.fluid) if case.fluid is not None else None
         g, m = case.geometry, case.mesh
         wall = stack = None
         if layers:
-            wall = WallSpace.build(layers, g.length, g.radius, m.nz, m.order, [spec.cells for spec in case.layers])
+            wall = WallSpace.build(layers, g.length, g.radius, m.nz, m.order, [spec.cells for spec in case.layers],
+                                   [spec.model for spec in case.layers])
             stack = Stack.assemble(wall)
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None

@@ -279,11 +279,14 @@ def _run_job(job: Job, registry: Registry) -> tuple[str, str]:
 
 
 def _run_in_worker(job: Job, plugins: tuple[str, ...]) -> tuple[str, str]:
-    """A worker process: its own registry (the ``--plugin`` modules imported again), built once."""
+    """A worker process: its own registry (the ``--plugin`` modules imported again), built once.
+
+    A plugin that fails to load was reported by the parent process already.
+    """
     if plugins not in _REGISTRIES:
         from multilayer.cli import load_registry
 
-        _REGISTRIES[plugins] = load_registry(plugins)
+        _REGISTRIES[plugins] = load_registry(plugins, warn=False)
     return _run_job(job, _REGISTRIES[plugins])
 
 

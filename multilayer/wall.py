@@ -18,6 +18,7 @@ import scipy.sparse as sp
 import skfem
 
 from multilayer.interfaces import BandSpace, Layer, LayerMatrices, LineSpace
+from multilayer.layer_checks import LayerError, essential_problems, matrix_problems, raised
 from multilayer.mesh import lagrange_tri, wall_mesh
 from multilayer.spaces import line_prolongation, make_line_space, prolongation_dofs
 
@@ -33,6 +34,12 @@ class Placement:
     layer: Layer
     line: int | None = None
     band: int | None = None
+    name: str = ""  #: the layer's model name, for messages
+
+    @property
+    def where(self) -> str:
+        """``layers[i] (model)``: the layer as a message names it."""
+        return f"layers[{self.index}] ({self.name or type(self.layer).__name__})"
 
 
 @attrs.define(eq=False)
@@ -51,19 +58,21 @@ class WallSpace:
 
     @classmethod
     def build(cls, layers: Sequence[Layer], length: float, radius: float, nz: int, order: int,
-              band_cells: Sequence[int | None] = ()) -> WallSpace:
+              band_cells: Sequence[int | None] = (), names: Sequence[str] = ()) -> WallSpace:
         """Place ``layers`` (lumen outward) and build the wall's spaces.
 
-        ``band_cells[i]`` is the radial cell count of ``layers[i]`` when it is thick.
+        ``band_cells[i]`` is the radial cell count of ``layers[i]`` when it is
+        thick; ``names[i]`` its model name, for messages.
         """
         placements: list[Placement] = []
         bands_spec: list[tuple[float, int]] = []
         for i, layer in enumerate(layers):
+            name = names[i] if i < len(names) else ""
             if layer.thin:
-                placements.append(Placement(i, layer, line=len(bands_spec)))
+                placements.append(Placement(i, layer, line=len(bands_spec), name=name))
             else:
                 cells = (band_cells[i] if i < len(band_cells) else None) or 4
-                placements.append(Placement(i, layer, band=len(bands_spec)))
+                placements.append(Placement(i, layer, band=len(bands_spec), name=name))
                 bands_spec.append((float(layer.thickness), int(cells)))
 
         if not bands_spec:
@@ -146,18 +155,18 @@ class Stack:
 
     @classmethod
     def assemble(cls, space: WallSpace) -> Stack:
+        """Every layer's matrices on its space, checked (:func:`layer_output`), summed in wall numbering.
+
+        Raises
+        ------
+        LayerError
+            Naming the layer (``layers[i] (model)``) and what it returned wrong.
+        """
         n = space.ndofs
         matrices: list[LayerMatrices] = []
         fixed = [np.zeros(0, dtype=np.int64)]
         for p in space.placements:
-            sub = space.space_of(p)
-            own = p.layer.forms(sub)
-            for part in ("mass", "damping", "stiffness"):
-                values = getattr(own, part).data
-                if not np.all(np.isfinite(values)):
-                    raise ValueError(f"layers[{p.index}] ({type(p.layer).__name__}) returned "
-                                     f"non-finite entries in its {part} matrix")
-            ess = np.asarray(p.layer.essential_dofs(sub), dtype=np.int64)
+            own, ess = layer_output(p, space.space_of(p))
             if p.line is not None:
                 P = space.prolongations[p.line]
                 own = own.scattered(P)
@@ -172,3 +181,31 @@ class Stack:
         fixed_all = np.unique(np.concatenate(fixed))
         free = np.setdiff1d(np.arange(n), fixed_all)
         return cls(space, matrices, M, C, K, fixed_all, free)
+
+
+def layer_output(p: Placement, space: LineSpace | BandSpace) -> tuple[LayerMatrices, np.ndarray]:
+    """The matrices and essential DOFs of the layer placed at ``p``, on its ``space``, checked.
+
+    The checks of :mod:`multilayer.layer_checks`: sparse matrices of the
+    space's shape, finite, symmetric; essential DOFs integers in range.
+
+    Raises
+    ------
+    LayerError
+        ``layers[i] (model): damping must be a scipy sparse matrix, got float``,
+        or what the layer's own code raised, with where.
+    """
+    n = space.ndofs
+    try:
+        own = p.layer.forms(space)
+    except Exception as exc:  # the layer's own code: name it and say where it failed
+        raise LayerError(p.where, [f"forms raised {raised(exc)}"]) from exc
+    problems = matrix_problems(own, n)
+    try:
+        ess = p.layer.essential_dofs(space)
+    except Exception as exc:
+        raise LayerError(p.where, [f"essential_dofs raised {raised(exc)}"]) from exc
+    problems += essential_problems(ess, n)
+    if problems:
+        raise LayerError(p.where, problems)
+    return own, np.asarray(ess, dtype=np.int64)

@@ -119,13 +119,13 @@ def multilayer_layers() -> list[LayerPlugin]:
                 *mass_params("shell"),
                 Param("young", "E", "dyn/cm²", default=None, gt=0.0,
                       doc="Young's modulus (with poisson; excludes C0, C1, C2)"),
-                Param("poisson", "σ", "", default=None, gt=-1.0, lt=0.5,
+                Param("poisson", "σ", "1", default=None, gt=-1.0, lt=0.5,
                       doc="Poisson ratio, 0.5 excluded (with young)"),
                 Param("radius", "R", "cm", default=None, gt=0.0,
                       doc="radius in the coefficients (with young; default: the line's radius)"),
                 Param("viscous_young", "E_v", "dyn·s/cm²", default=None, ge=0.0,
                       doc="viscoelastic counterpart of young (with young; default 0)"),
-                Param("viscous_poisson", "σ_v", "", default=None, gt=-1.0, lt=0.5,
+                Param("viscous_poisson", "σ_v", "1", default=None, gt=-1.0, lt=0.5,
                       doc="viscoelastic counterpart of poisson (with young; default: poisson)"),
                 Param("C0", "C0", "dyn/cm³", default=None, ge=0.0,
                       doc="coefficient of η (with C1, C2; excludes young)"),
@@ -141,5 +141,6 @@ def multilayer_layers() -> list[LayerPlugin]:
             ),
             doc="Cylindrical Koiter shell: ρ₁h η_tt + C0 η − C1 η_zz + C2 η_zzzz + viscous terms = f.",
             thin=True,
+            example={"density": 1.1, "thickness": 0.02, "young": 7.5e5, "poisson": 0.45, "viscous_young": 1.0e3},
         )
     ]

@@ -91,7 +91,7 @@ PARAMS = (
     Param("density", "ρ₂", "g/cm³", gt=0.0, doc="mass density of the band"),
     Param("thickness", "H", "cm", gt=0.0, doc="radial thickness of the band"),
     Param("young", "E", "dyn/cm²", None, gt=0.0, doc="Young's modulus (with poisson)"),
-    Param("poisson", "σ", "", None, gt=-1.0, lt=0.5, doc="Poisson ratio (with young)"),
+    Param("poisson", "σ", "1", None, gt=-1.0, lt=0.5, doc="Poisson ratio (with young)"),
     Param("lame_mu", "μ_s", "dyn/cm²", None, gt=0.0, doc="shear modulus (with lame_lambda)"),
     Param("lame_lambda", "λ_s", "dyn/cm²", None, doc="first Lamé constant (with lame_mu)"),
     Param("ends", "", "", "clamped", type=str, choices=("clamped", "sliding"),
@@ -104,4 +104,5 @@ PARAMS = (
 @hookimpl
 def multilayer_layers():
     return [LayerPlugin(name="linear-elastic", factory=_factory, params=PARAMS, thin=False,
-                        doc="Thick band of 2D linear elasticity (young/poisson or Lamé constants).")]
+                        doc="Thick band of 2D linear elasticity (young/poisson or Lamé constants).",
+                        example={"density": 1.1, "thickness": 0.1, "young": 7.5e5, "poisson": 0.45})]

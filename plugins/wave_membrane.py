@@ -33,5 +33,6 @@ def multilayer_layers() -> list[LayerPlugin]:
             ),
             doc="Wave-equation membrane: ρ₁h η_tt = C1 η_zz + f, ends pinned.",
             thin=True,
+            example={"density": 1.1, "thickness": 0.1, "tension": 2.0e4},
         )
     ]

@@ -194,6 +194,15 @@ def test_coupler_check_case(case_file):
     assert coupler_problems(case, FAKES) == []
 
 
+def test_coupler_objections_come_with_every_other_problem(case_file):
+    with pytest.raises(CaseError) as info:
+        load_case(case_file, ["fluid=none", "coupler=kinematic-splitting", "output.probes[2].quantity=eta",
+                              "layers[1].density=-1", "time.dt=0"], FAKES)
+    paths = [p.path for p in info.value.problems]
+    assert paths == ["time.dt", "layers[1].density", "coupler.model"]
+    assert "kinematic-splitting needs a fluid" in str(info.value)
+
+
 def test_probe_rules(case_file):
     with pytest.raises(CaseError) as info:
         load_case(
@@ -321,6 +330,102 @@ MISTAKES = [
 ]
 
 
+# A formula is data: judged on its domain at validation (T = 0.001, L = 6, R = 0.5, H = 0.1 in BASE).
+FORMULA_MISTAKES = [
+    # id, --set value, what stderr must say
+    ("divides-by-zero", 'loads.interface="1/0"',
+     ["loads.interface = '1/0': gives inf at t = 0: a division by zero",
+      "expected a finite real value for every t in [0, 0.001]"]),
+    ("zero-denominator", 'loads.interface="1/(t-t)"', ["loads.interface = '1/(t-t)'", "a division by zero"]),
+    ("overflows", 'loads.interface="exp(1000)"', ["loads.interface = 'exp(1000)': gives inf at t = 0: an overflow"]),
+    ("not-real", 'loads.interface="sqrt(-1)"', ["loads.interface = 'sqrt(-1)': gives nan", "not a real number"]),
+    ("not-real-late", 'loads.interface="1e3*sqrt(0.0005 - t)"',
+     ["loads.interface = '1e3*sqrt(0.0005 - t)': gives nan at t = 0.000503906", "not a real number"]),
+    ("table-formula", 'loads.interface={kind="formula", expr="9**9**9"}',
+     ["loads.interface.expr = '9**9**9': gives inf at t = 0: an overflow"]),
+    ("power-tower", 'loads.interface="10**10**10*t"', ["loads.interface = '10**10**10*t'", "an overflow"]),
+    ("huge-exponent", 'loads.interface="t**5000"', ["loads.interface = 't**5000'", "the exponent 5000 is too large"]),
+    ("huge-number", 'loads.interface="1e400*t"', ["loads.interface = '1e400*t'", "too large for a float"]),
+    ("too-long", 'loads.interface="' + "t+" * 50_000 + 't"',
+     ["loads.interface = 't+t+t+", "too long: 100001 characters; expected at most 2000"]),
+    ("too-deep", 'loads.interface="' + "(" * 150 + "t" + ")" * 150 + '"',
+     ["loads.interface = '((((", "nested too deeply: 150 levels of brackets; expected at most 100"]),
+    ("too-deep-chain", 'initial.velocity.r="' + "-" * 500 + 'z"', ["initial.velocity.r = '----", "nested too deeply"]),
+    ("wall-motion-z", 'loads.wall_motion="1/(z-3)"',
+     ["loads.wall_motion = '1/(z-3)': gives inf at t = 0, z = 3: a division by zero",
+      "for every t in [0, 0.001], z in [0, 6]"]),
+    ("initial-r-across-the-band", 'initial.displacement.r="sqrt(0.55 - r)"',
+     ["initial.displacement.r = 'sqrt(0.55 - r)': gives nan at z = 0, r = 0.551562", "not a real number",
+      "for every z in [0, 6], r in [0.5, 0.6]"]),
+    ("initial-constant", 'initial.velocity.z="1/(H - 0.1)"', ["initial.velocity.z = '1/(H - 0.1)'", "a division by zero"]),
+]
+
+
+@pytest.mark.parametrize("override, fragments", [m[1:] for m in FORMULA_MISTAKES], ids=[m[0] for m in FORMULA_MISTAKES])
+def test_cli_judges_each_formula_on_its_domain(tmp_path, capsys, override, fragments):
+    path = write_case(tmp_path, None)
+    assert main(["validate", str(path), "--set", override]) == 2
+    out, err = capsys.readouterr()
+    for fragment in fragments:
+        assert fragment in err
+    assert "Traceback" not in out + err
+
+
+def test_a_formula_finite_on_its_domain_is_valid(tmp_path, capsys):
+    # singular outside [0, T] or across z, r only where the run never evaluates it
+    path = write_case(tmp_path, None)
+    assert main(["validate", str(path), "--set", 'loads.interface="1/(t + 1e-3)"',
+                 "--set", 'initial.displacement.r="1e-3*log(r - 0.4)*sin(pi*z/L)"']) == 0
+
+
+@pytest.mark.parametrize("expr", ["9**9**9", "10**10**10*t"])
+def test_power_towers_are_refused_at_once(tmp_path, expr):
+    # as exact integers these never finish: the check runs in a process with a deadline
+    path = write_case(tmp_path, None)
+    done = subprocess.run([sys.executable, "-m", "multilayer.cli", "validate", str(path),
+                           "--set", f'loads.interface="{expr}"'], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "an overflow" in done.stderr and "Traceback" not in done.stderr
+
+
+# Sizes that cannot run are refused before any work (BASE: a wall of nz x 2 band cells, no fluid).
+SIZE_MISTAKES = [
+    ("nz-billion", ["mesh.nz=1000000000"],
+     ["mesh.nz = 1000000000: the case needs about", "GB of memory (2e+10 unknowns: wall 2e+10), this machine has",
+      "GB available"]),
+    ("nz-int64-max", ["mesh.nz=9223372036854775807"], ["mesh.nz = 9223372036854775807: the case needs about"]),
+    ("cells-billion", ["layers[1].cells=1000000000"], ["layers[1].cells = 1000000000: the case needs about"]),
+    ("nr-with-a-fluid", ["fluid={model=\"stokes\", density=1.0, viscosity=0.035}", "coupler=kinematic-splitting",
+                         "mesh.nr=1000000000"], ["mesh.nr = 1000000000: the case needs about", "fluid 5.9e+10, wall 130"]),
+    ("steps", ["time.dt=1e-13"], ["time.dt = 1e-13: 1e+10 steps to time.end = 0.001; expected at most 1e+08 steps"]),
+    ("steps-infinite", ["time.dt=1e-320"], ["time.dt = 1e-320: inf steps"]),
+]
+
+
+@pytest.mark.parametrize("sets, fragments", [m[1:] for m in SIZE_MISTAKES], ids=[m[0] for m in SIZE_MISTAKES])
+def test_cli_refuses_sizes_that_cannot_run(tmp_path, capsys, sets, fragments):
+    path = write_case(tmp_path, None)
+    args = [a for s in sets for a in ("--set", s)]
+    assert main(["validate", str(path), *args]) == 2
+    out, err = capsys.readouterr()
+    for fragment in fragments:
+        assert fragment in err
+    assert "Traceback" not in out + err
+
+
+def test_the_memory_check_weighs_the_case_against_this_machine(tmp_path, capsys, monkeypatch):
+    import multilayer.resources
+
+    path = write_case(tmp_path, None)
+    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e9)
+    assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 2
+    assert ("mesh.nz = 20000: the case needs about 8.9 GB of memory (4e+05 unknowns: wall 4e+05), "
+            "this machine has 1 GB available") in capsys.readouterr().err
+    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e12)
+    assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
+    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: None)  # unknown: not refused
+    assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
+
+
 def write_case(tmp_path, edit):
     text = BASE
     if edit is not None:
@@ -345,6 +450,43 @@ def test_cli_reports_each_mistake(tmp_path, capsys, edit, args, fragments):
     for fragment in fragments:
         assert fragment in err
     assert "Traceback" not in out + err
+
+
+# Other problems and the coupler's objections in one pass (real plugins; BASE is a wall, structure-only).
+ONE_PASS = [
+    ("load-and-parameter", ["loads.inlet=100", "layers[0].poisson=0.5"],
+     ["layers[0].poisson = 0.5: expected a number",
+      "coupler.model = 'structure-only': loads.inlet is set, but structure-only does not apply it"]),
+    ("fluid-misspelt", ['fluid={model="navier-stoke", density=1.0}', "coupler=structure-only"],
+     ["fluid.model = 'navier-stoke': no such fluid plugin",
+      "coupler.model = 'structure-only': structure-only runs a wall without fluid"]),
+    ("mesh-and-thick-first", ['fluid={model="stokes", density=1.0, viscosity=0.035}', "coupler=monolithic",
+                              "loads.interface=0", "mesh.order=3",
+                              'layers[0]={model="linear-elastic", density=1.0, thickness=0.1, young=1e6, poisson=0.3}'],
+     ["mesh.order = 3: expected one of 1, 2", "coupler.model = 'monolithic': monolithic needs a thin layer at the "
+      "fluid interface, but layers[0] is 'linear-elastic' (thick)"]),
+]
+
+
+@pytest.mark.parametrize("sets, fragments", [m[1:] for m in ONE_PASS], ids=[m[0] for m in ONE_PASS])
+def test_cli_reports_coupler_objections_with_the_rest(tmp_path, capsys, sets, fragments):
+    path = write_case(tmp_path, None)
+    assert main(["validate", str(path), *(a for s in sets for a in ("--set", s))]) == 2
+    out, err = capsys.readouterr()
+    for fragment in fragments:
+        assert fragment in err
+    assert "Traceback" not in out + err
+
+
+def test_a_coupler_is_not_asked_about_parts_that_could_not_be_built(tmp_path, capsys):
+    # kinematic-splitting reads layers[0]; it is invalid, so the coupler's view of it waits for the next pass
+    path = write_case(tmp_path, None)
+    assert main(["validate", str(path), "--set", 'fluid={model="stokes", density=1.0, viscosity=0.035}',
+                 "--set", "coupler=kinematic-splitting", "--set", "loads.interface=0",
+                 "--set", "layers[0].model=koiter"]) == 2
+    err = capsys.readouterr().err
+    assert "layers[0].model = 'koiter': no such layer plugin" in err
+    assert "coupler.model" not in err and "Traceback" not in err
 
 
 def test_cli_missing_case_file(tmp_path, capsys):

@@ -110,3 +110,48 @@ def test_a_number_is_its_own_formula():
 def test_linear_formula_matches_numpy(a, b, z):
     f = Formula.parse(f"{a!r}*z + {b!r}")
     np.testing.assert_allclose(f(z=z), a * np.array(z) + b, rtol=1e-12, atol=1e-9)
+
+
+# -- limits: a formula is bounded before Python's parser sees it ------------------
+
+@pytest.mark.parametrize(
+    "expr, words",
+    [
+        ("z+" * 50_000 + "z", "too long: 100001 characters; expected at most 2000"),
+        ("(" * 150 + "z" + ")" * 150, "nested too deeply: 150 levels of brackets; expected at most 100"),
+        ("sin(" * 120 + "z" + ")" * 120, "nested too deeply: 120 levels of brackets"),
+        ("-" * 500 + "z", "nested too deeply: 501 levels"),
+        ("z" + "+z" * 150, "nested too deeply: 151 levels (each operator of a chain"),
+        ("z**2000", "the exponent 2000 is too large; expected a number of magnitude at most 1000"),
+        ("z**-5000", "the exponent -5000 is too large"),
+        ("1e400*z", "the number 1e400 is too large for a float"),
+        ("1" + "0" * 400, "is too large for a float"),
+    ],
+)
+def test_refuses_what_is_too_big_to_parse_or_evaluate(expr, words):
+    with pytest.raises(FormulaError) as info:
+        Formula.parse(expr)
+    assert words in str(info.value)
+
+
+def test_the_largest_accepted_formula_parses():
+    chain = "z" + "+z" * 98  # 99 operators: a tree 100 levels deep
+    assert float(Formula.parse(chain)(z=1.0)) == 99.0
+    assert float(Formula.parse("(" * 99 + "z" + ")" * 99)(z=2.0)) == 2.0
+    assert float(Formula.parse("z**1000")(z=1.0)) == 1.0
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered")
+def test_numbers_are_floats_never_python_integers():
+    # as Python integers these take hours and gigabytes; as floats they overflow at once
+    assert np.isinf(Formula.parse("9**9**9")())
+    assert np.isinf(Formula.parse("10**10**10*t")(t=1.0))
+    # float arithmetic, not exact integer arithmetic
+    assert float(Formula.parse("(10**16 + 1) - 10**16")()) == 0.0
+    assert float(Formula.parse("2**64")()) == 2.0**64
+
+
+@pytest.mark.filterwarnings("ignore:divide by zero")
+def test_division_by_zero_gives_inf_not_an_exception():
+    assert np.isinf(Formula.parse("1/0")())
+    assert np.isinf(Formula.parse("L/H", constants={"L": 6.0, "H": 0.0})())

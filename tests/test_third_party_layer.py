@@ -17,6 +17,7 @@ from multilayer.records import LayerPlugin, Param
 from multilayer.registry import Registry
 from multilayer.run import run_case
 from multilayer.signals import backward_euler_eigenvalue, prony_roots
+from multilayer.testing import LayerConformance
 
 
 @skfem.BilinearForm
@@ -61,3 +62,10 @@ def test_third_party_layer_is_registered_and_rings_at_its_own_frequency(tmp_path
     z = prony_roots(np.array([float(r["eta"]) for r in rows]), 2)
     lam = backward_euler_eigenvalue(z[np.argmax(np.angle(z))], 1e-5)
     assert abs(abs(lam.imag) - np.sqrt(4.4e4 / 0.11)) / np.sqrt(4.4e4 / 0.11) < 1e-9
+
+
+class TestWinklerConforms(LayerConformance):
+    """The conformance kit, run the way a third party runs it in its own tests."""
+
+    layer = "winkler"
+    plugins = (sys.modules[__name__],)

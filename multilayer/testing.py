@@ -1,0 +1,383 @@
+"""The conformance kit: what a layer plugin must satisfy, for its author's own tests.
+
+A package that ships a layer model runs these checks in its test suite
+(pytest is not imported here; the checks raise ``AssertionError``)::
+
+    from multilayer.testing import LayerConformance, assert_layer_conforms
+
+    class TestMyLayer(LayerConformance):        # one test per check
+        layer = "my-layer"
+        plugins = (my_package.my_layer,)        # not needed once installed (entry point)
+        params = {"density": 1.1, "thickness": 0.1, "stiffness": 1e4}  # default: the record's example
+
+    def test_my_layer_conforms(tmp_path):        # or all checks in one test
+        assert_layer_conforms("my-layer", plugins=[my_package.my_layer], workdir=tmp_path)
+
+and ``multilayer check-plugin NAME`` runs the same from the command line.
+The checks (:data:`CHECKS`):
+
+``schema``
+    every parameter has a doc, every float parameter a unit (``"1"`` when
+    dimensionless), every default is valid against its own type and bounds,
+    and the parameters used are valid against the schema;
+``build``
+    the factory builds, from those parameters, a ``ThinLayer`` or
+    ``ThickLayer`` as the record declares (a band with a thickness);
+``matrices``
+    on small spaces of order 1 and 2, mass, damping and stiffness are scipy
+    sparse matrices of the space's shape, finite, real, symmetric and
+    positive semi-definite (smallest eigenvalue ≥ −1e-10 × the largest);
+``essential-dofs``
+    integers within the space;
+``coupled-run``
+    a short pressure pulse through a coarse channel (:data:`SCENE`, the
+    layer on the lumen, or on a ``wave-membrane`` when it is thick) runs
+    through :func:`multilayer.run.run_case` and its energy ledger closes:
+    ``summary.json`` energy.max_relative_residual ≤ :data:`LEDGER_TOL`.
+
+The parameters are those given, else the record's ``example``, else values
+made up from the schema (inside the bounds).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import tempfile
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import attrs
+
+from multilayer.interfaces import Layer
+from multilayer.layer_checks import abstract_problem, essential_problems, matrix_problems, raised, type_problem
+from multilayer.problems import CaseError, check_params, check_value, describe
+from multilayer.records import LayerPlugin, Param
+from multilayer.registry import Registry
+
+__all__ = ["CHECKS", "CheckResult", "LayerConformance", "assert_layer_conforms", "check_layer", "example_params"]
+
+#: The checks, in the order they run.
+CHECKS = ("schema", "build", "matrices", "essential-dofs", "coupled-run")
+#: Largest relative residual of the energy ledger the coupled run may have.
+LEDGER_TOL = 1e-9
+#: The coupled scene: a pressure pulse through a coarse channel, 10 steps (layers filled in per layer).
+SCENE: dict[str, Any] = {
+    "title": "conformance: a pressure pulse through a coarse channel",
+    "geometry": {"length": 6.0, "radius": 0.5},
+    "mesh": {"nz": 12, "nr": 3, "order": 2},
+    "time": {"end": 1e-3, "dt": 1e-4},
+    "fluid": {"model": "navier-stokes", "density": 1.0, "viscosity": 0.035},
+    "coupler": {"model": "kinematic-splitting"},
+    "loads": {"inlet": {"kind": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
+}
+#: The thin layer a thick one is put behind in the coupled scene (the fluid needs a thin layer at its wall).
+LUMEN_LAYER = {"model": "wave-membrane", "density": 1.1, "thickness": 0.02, "tension": 2.0e4}
+#: The small spaces of the matrix checks: length, radius, cells along z (and radial cells of a band).
+SMALL = {"length": 6.0, "radius": 0.5, "nz": 4, "band_cells": 2}
+
+
+@attrs.frozen
+class CheckResult:
+    """One check's outcome: its name and what is wrong (nothing when it passed).
+
+    >>> print(CheckResult("schema", ()), CheckResult("build", ("the factory raised KeyError: 'x'",)), sep="\\n")
+    ok    schema
+    FAIL  build: the factory raised KeyError: 'x'
+    """
+
+    name: str
+    problems: tuple[str, ...] = attrs.field(converter=tuple)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    def __str__(self) -> str:
+        return f"ok    {self.name}" if self.ok else f"FAIL  {self.name}: " + "; ".join(self.problems)
+
+
+def example_params(record: LayerPlugin) -> dict[str, Any]:
+    """The record's ``example``, or a value inside the bounds for every required parameter.
+
+    >>> from multilayer.records import LayerPlugin, Param
+    >>> record = LayerPlugin("x", dict, (Param("density", gt=0.0), Param("poisson", gt=-1.0, lt=0.5),
+    ...                                  Param("cells", type=int, ge=1), Param("viscosity", default=0.0)))
+    >>> example_params(record)
+    {'density': 1.0, 'poisson': -0.25, 'cells': 2}
+    """
+    if record.example is not None:
+        return dict(record.example)
+    return {p.name: _inside(p) for p in record.params if p.required}
+
+
+def _inside(param: Param) -> Any:
+    """A value the parameter accepts: the first choice, or one inside its bounds."""
+    if param.choices:
+        return param.choices[0]
+    if param.type is bool:
+        return False
+    if param.type is str:
+        return "x"
+    low = next((b for b in (param.gt, param.ge) if b is not None), None)
+    high = next((b for b in (param.lt, param.le) if b is not None), None)
+    if low is not None and high is not None:
+        value = 0.5 * (low + high)
+    elif low is not None:
+        value = low + 1.0
+    elif high is not None:
+        value = high - 1.0
+    else:
+        value = 1.0
+    return int(round(value)) if param.type is int else float(value)
+
+
+@attrs.define
+class _Subject:
+    """The layer under test: its record, the parameters, and the object once built."""
+
+    name: str
+    registry: Registry
+    record: LayerPlugin
+    params: dict[str, Any]
+    checks: Sequence[str] = CHECKS
+    layer: Any = None
+    build_problems: list[str] | None = None
+
+    def unbuilt(self) -> list[str]:
+        """What a check that needs the layer says when it cannot be built."""
+        why = "see build" if "build" in self.checks else "; ".join(self.built()[1])
+        return [f"not checked: the layer cannot be built ({why})"]
+
+    def built(self) -> tuple[Any, list[str]]:
+        """The layer object (None when it could not be built) and why not."""
+        if self.build_problems is None:
+            self.build_problems = []
+            checked, problems = check_params(self.params, self.record.params, self.name)
+            problem = abstract_problem(self.record.factory)
+            if problems or problem:
+                self.build_problems = [str(p) for p in problems] + ([problem] if problem else [])
+                return None, self.build_problems
+            try:
+                self.layer = self.record.factory(**checked)
+            except Exception as exc:  # the plugin's own code
+                self.build_problems = [f"the factory raised {raised(exc)}"]
+                return None, self.build_problems
+            problem = type_problem(self.layer, self.record.thin)
+            if problem:
+                self.build_problems = [problem]
+                self.layer = None
+        return self.layer, self.build_problems
+
+
+def _check_schema(subject: _Subject, workdir: Path) -> list[str]:
+    problems = []
+    if not subject.record.doc.strip() or "\n" in subject.record.doc.strip():
+        problems.append("the record's doc must be one line")
+    for p in subject.record.params:
+        if not p.doc.strip():
+            problems.append(f"parameter {p.name!r} has no doc")
+        if p.type is float and not p.unit:
+            problems.append(f"float parameter {p.name!r} has no unit (give unit='1' when it is dimensionless)")
+        if not p.required and p.default is not None:
+            _, ok = check_value(p, p.default)
+            if not ok:
+                problems.append(f"default of {p.name!r} ({p.default!r}) is not valid against its own schema: "
+                                f"expected {describe(p)}")
+    _, invalid = check_params(subject.params, subject.record.params, subject.name)
+    problems += [f"the parameters used: {p}" for p in invalid]
+    return problems
+
+
+def _small_spaces(layer: Layer) -> list[tuple[int, Any]]:
+    """(order, space) for orders 1 and 2: a line of :data:`SMALL` cells, or the band of a small wall."""
+    from multilayer.spaces import make_line_space
+    from multilayer.wall import WallSpace
+
+    spaces = []
+    for order in (1, 2):
+        if layer.thin:
+            spaces.append((order, make_line_space(SMALL["length"], SMALL["nz"], order, SMALL["radius"])))
+        else:
+            wall = WallSpace.build([layer], SMALL["length"], SMALL["radius"], SMALL["nz"], order, [SMALL["band_cells"]])
+            spaces.append((order, wall.bands[0]))
+    return spaces
+
+
+def _on_small_spaces(subject: _Subject, check: Callable[[Layer, Any], list[str]]) -> list[str]:
+    layer, _ = subject.built()
+    if layer is None:
+        return subject.unbuilt()
+    problems = []
+    for order, space in _small_spaces(layer):
+        try:
+            found = check(layer, space)
+        except Exception as exc:  # the plugin's own code
+            found = [raised(exc)]
+        problems += [f"order {order}: {p}" for p in found]
+    return problems
+
+
+def _check_matrices(subject: _Subject, workdir: Path) -> list[str]:
+    def check(layer: Layer, space: Any) -> list[str]:
+        try:
+            matrices = layer.forms(space)
+        except Exception as exc:  # the plugin's own code
+            return [f"forms raised {raised(exc)}"]
+        return matrix_problems(matrices, space.ndofs, definite=True)
+
+    return _on_small_spaces(subject, check)
+
+
+def _check_essential(subject: _Subject, workdir: Path) -> list[str]:
+    def check(layer: Layer, space: Any) -> list[str]:
+        try:
+            dofs = layer.essential_dofs(space)
+        except Exception as exc:  # the plugin's own code
+            return [f"essential_dofs raised {raised(exc)}"]
+        return essential_problems(dofs, space.ndofs)
+
+    return _on_small_spaces(subject, check)
+
+
+def scene(name: str, params: Mapping[str, Any], thin: bool) -> dict[str, Any]:
+    """The case data of the coupled scene with the layer ``name`` on the lumen (behind a membrane when thick).
+
+    >>> [layer["model"] for layer in scene("linear-elastic", {"thickness": 0.1}, thin=False)["layers"]]
+    ['wave-membrane', 'linear-elastic']
+    """
+    data = copy.deepcopy(SCENE)
+    layer = {"model": name, **params}
+    data["layers"] = [layer] if thin else [dict(LUMEN_LAYER), {**layer, "cells": 2}]
+    return data
+
+
+def _check_coupled_run(subject: _Subject, workdir: Path) -> list[str]:
+    from multilayer.casefile import validate_data
+    from multilayer.run import run_case
+
+    layer, _ = subject.built()
+    if layer is None:
+        return subject.unbuilt()
+    if not subject.record.thin and subject.registry.find("layer", LUMEN_LAYER["model"]) is None:
+        return [f"not checked: the scene puts a thick layer behind {LUMEN_LAYER['model']!r}, which is not installed"]
+    try:
+        case = validate_data(scene(subject.name, subject.params, subject.record.thin), workdir, subject.registry)
+    except CaseError as exc:
+        return [f"the scene is not a valid case: {p}" for p in exc.problems]
+    out = workdir / f"check-{subject.name}"
+    result = run_case(case, out, subject.registry)
+    summary = json.loads((out / "summary.json").read_text())
+    if result.status != "ok":
+        return [f"the run failed: {result.reason}"]
+    residual = summary["energy"]["max_relative_residual"]
+    if not residual <= LEDGER_TOL:
+        return [f"the energy ledger does not close: max relative residual {residual:.3g} > {LEDGER_TOL:g} "
+                "(are the matrices the layer's energy? see docs/theory.md §7)"]
+    return []
+
+
+_RUNNERS: dict[str, Callable[[_Subject, Path], list[str]]] = {
+    "schema": _check_schema,
+    "build": lambda subject, workdir: subject.built()[1],
+    "matrices": _check_matrices,
+    "essential-dofs": _check_essential,
+    "coupled-run": _check_coupled_run,
+}
+
+
+def check_layer(name: str, params: Mapping[str, Any] | None = None, registry: Registry | None = None,
+                plugins: Iterable[object] = (), checks: Sequence[str] = CHECKS,
+                workdir: Path | str | None = None) -> list[CheckResult]:
+    """Run the conformance checks on the layer plugin ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The layer's name, as a case file writes it.
+    params : mapping, optional
+        The parameters to build it with (all of them: they replace the
+        record's ``example``, or the values :func:`example_params` makes up).
+    registry : Registry, optional
+        The plugins; by default the installed ones plus ``plugins``.
+    plugins : iterable of modules or objects
+        Plugins to register by hand (a module not installed as an entry point).
+    checks : sequence of str
+        Which of :data:`CHECKS` to run.
+    workdir : path, optional
+        Where the coupled run writes its results; a temporary folder by default.
+
+    Returns
+    -------
+    list of CheckResult
+        One per check, in order.
+
+    Raises
+    ------
+    KeyError
+        When there is no layer plugin ``name`` (the message has the nearest name).
+    ValueError
+        For a check name not in :data:`CHECKS`.
+    """
+    unknown = [c for c in checks if c not in _RUNNERS]
+    if unknown:
+        raise ValueError(f"no such check {unknown[0]!r}; the checks are {', '.join(CHECKS)}")
+    registry = registry or Registry.load(extra=list(plugins))
+    record = registry.get("layer", name).record
+    subject = _Subject(name, registry, record, dict(params) if params is not None else example_params(record),
+                       tuple(checks))
+    with tempfile.TemporaryDirectory(prefix="multilayer-check-") as scratch:
+        folder = Path(workdir) if workdir is not None else Path(scratch)
+        folder.mkdir(parents=True, exist_ok=True)
+        return [CheckResult(check, _RUNNERS[check](subject, folder)) for check in checks]
+
+
+def assert_layer_conforms(name: str, params: Mapping[str, Any] | None = None, registry: Registry | None = None,
+                          plugins: Iterable[object] = (), checks: Sequence[str] = CHECKS,
+                          workdir: Path | str | None = None) -> None:
+    """:func:`check_layer`, raising ``AssertionError`` with one line per failed check.
+
+    >>> assert_layer_conforms("wave-membrane", checks=("schema", "build", "matrices", "essential-dofs"))
+    """
+    failed = [r for r in check_layer(name, params, registry, plugins, checks, workdir) if not r.ok]
+    if failed:
+        raise AssertionError(f"layer {name!r} does not conform:\n" + "\n".join(str(r) for r in failed))
+
+
+class LayerConformance:
+    """Base of a test class: one test per check.  Subclass it as ``Test...`` and set ``layer``.
+
+    Attributes
+    ----------
+    layer : str
+        The layer's name.
+    params : dict or None
+        Parameters to build it with (default: the record's ``example``).
+    plugins : tuple
+        Plugin modules to register by hand, for a layer not installed as an entry point.
+    """
+
+    layer: str = ""
+    params: dict[str, Any] | None = None
+    plugins: tuple[object, ...] = ()
+
+    def assert_check(self, check: str, workdir: Path | str | None = None) -> None:
+        """Run one check of :data:`CHECKS` on :attr:`layer`."""
+        assert self.layer, f"{type(self).__name__}: set the class attribute 'layer' to the layer's name"
+        assert_layer_conforms(self.layer, self.params, plugins=self.plugins, checks=(check,), workdir=workdir)
+
+    def test_schema(self) -> None:
+        self.assert_check("schema")
+
+    def test_build(self) -> None:
+        self.assert_check("build")
+
+    def test_matrices(self) -> None:
+        self.assert_check("matrices")
+
+    def test_essential_dofs(self) -> None:
+        self.assert_check("essential-dofs")
+
+    def test_coupled_run(self, tmp_path: Path) -> None:
+        self.assert_check("coupled-run", tmp_path)

@@ -1,0 +1,60 @@
+"""What a case needs against what the machine has: exact unknowns, the memory estimate, its inputs."""
+
+import pytest
+
+from multilayer import resources
+from multilayer.resources import available_memory, fluid_dofs, need, wall_dofs
+from multilayer.wall import WallSpace
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.linear_elastic import LinearElasticBand
+from multilayer_plugins.thin_shell import KoiterFamilyLayer
+
+
+@pytest.mark.parametrize("nz, nr", [(3, 2), (7, 5), (12, 1)])
+@pytest.mark.parametrize("order", [1, 2])
+def test_fluid_unknowns_are_those_of_the_channel(nz, nr, order):
+    channel = Channel.build(6.0, 0.5, nz, nr, order)
+    assert fluid_dofs(nz, nr, order) == channel.velocity.N + channel.pressure.N
+
+
+@pytest.mark.parametrize("nz", [3, 8])
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("cells", [[], [3], [3, 2]])
+def test_wall_unknowns_are_those_of_the_wall(nz, order, cells):
+    thin = KoiterFamilyLayer(1.0, 0.1, C1=1.0)
+    layers = [thin] + [LinearElasticBand(1.0, 0.1, 1.0, 1.0) for _ in cells]
+    space = WallSpace.build(layers, 6.0, 0.5, nz, order, [None, *cells])
+    assert wall_dofs(nz, order, cells) == space.ndofs
+
+
+# Peak resident memory of the runs of `python scripts/memory_per_dof.py` (docs/case-files.md, Size limits).
+MEASURED = [  # (mesh, order, fluid dofs + wall dofs, peak MB)
+    ((60, 8), 2, 6841, 149.1),
+    ((240, 32), 2, 79141, 1323.0),
+    ((60, 8), 1, 4177, 124.1),
+    ((240, 32), 1, 56989, 814.9),
+]
+
+
+@pytest.mark.parametrize("mesh, order, dofs, peak_mb", MEASURED)
+def test_the_estimate_lies_above_every_measured_run(mesh, order, dofs, peak_mb):
+    needed = need(*mesh, order, fluid=True, wall=True, band_cells=[4])  # pulse-koiter-thick
+    assert needed.dofs == dofs
+    assert peak_mb * 1e6 <= needed.memory <= 3 * peak_mb * 1e6
+
+
+def test_the_estimate_grows_faster_than_the_unknowns():
+    small, large = need(100, 10, 2, True, True), need(10_000, 1000, 2, True, True)
+    assert large.memory / small.memory > large.dofs / small.dofs
+
+
+def test_available_memory_reads_meminfo(tmp_path):
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:       32000000 kB\nMemFree:         1000000 kB\nMemAvailable:   24000000 kB\n")
+    assert available_memory(meminfo) == 24000000 * 1024.0
+    assert available_memory() is None or available_memory() > 0  # this machine
+
+
+def test_available_memory_without_meminfo_falls_back(tmp_path, monkeypatch):
+    monkeypatch.setattr(resources.os, "sysconf", lambda name: {"SC_AVPHYS_PAGES": 1000, "SC_PAGE_SIZE": 4096}[name])
+    assert available_memory(tmp_path / "missing") == 4096000.0
