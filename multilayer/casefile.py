@@ -32,7 +32,7 @@ from multilayer.case import (
     TimeSpec,
 )
 from multilayer.formula import Formula, FormulaError
-from multilayer.linsolve import BACKENDS
+from multilayer.linsolve import BACKENDS, REUSE_MODES, Reuse
 from multilayer.loads import load_from_spec
 from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
 from multilayer.records import Param
@@ -75,6 +75,13 @@ PROBE = (
 OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
 SOLVER = (
     Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
+    Param("reuse", type=str, default="krylov", choices=REUSE_MODES,
+          doc="a changing matrix: 'krylov' (GMRES preconditioned by an earlier factorization) or 'none' "
+              "(factorize every step)"),
+    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1,
+          doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
+    Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
+          doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
     Param("max_displacement", "", "R", default=0.5, gt=0.0,
           doc="stop the run when |η| on the lumen exceeds this fraction of R"),
     Param("energy_margin", default=0.01, gt=0.0,
@@ -353,6 +360,7 @@ class _Validator:
             initial=initial,
             output=output,
             solver=solver["linear"],
+            reuse=Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"]),
             limits=Limits(solver["max_displacement"], solver["energy_margin"]),
             resolved=resolved,
             digest=hashlib.sha256(canonical.encode()).hexdigest(),

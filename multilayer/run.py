@@ -273,6 +273,7 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
         "wall_time_s": tally.wall_time_s + time.perf_counter() - wall_t0,
         "timings": _timings(setup),
         "factorizations": _factorizations(setup),
+        "krylov": _krylov(setup),
         "energy": {"max_relative_residual": tally.max_rel},
         **_iterations(tally.iterations),
         **({"resumed_from": resumed_from} if saved is not None else {}),
@@ -351,6 +352,17 @@ def _factorizations(setup: Setup | None) -> dict[str, int]:
     if setup.fluid is not None:
         out["fluid"] = setup.fluid.stats.factorizations
     return out
+
+
+def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
+    """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``)."""
+    if setup is None:
+        return {}
+    stats = dict(setup.solvers)
+    if setup.fluid is not None:
+        stats["fluid"] = setup.fluid.stats
+    return {name: {"solves": st.krylov_solves, "iterations": st.krylov_iterations}
+            for name, st in stats.items() if getattr(st, "krylov_solves", 0) or getattr(st, "krylov_iterations", 0)}
 
 
 def _timings(setup: Setup | None) -> dict[str, float]:

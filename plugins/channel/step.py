@@ -43,7 +43,7 @@ import scipy.sparse as sp
 from multilayer.assembly.batched import BatchedForm
 from multilayer.assembly.pattern import Pattern
 from multilayer.interfaces import Domain, Interface
-from multilayer.linsolve import Factorized, SolverStats, factorize
+from multilayer.linsolve import Factorized, Reuse, ReusingSolver, SolverStats, factorize
 from multilayer.spaces import prolongation_dofs
 from multilayer.timescheme import TimeScheme, levels
 from multilayer_plugins.channel import forms
@@ -117,10 +117,12 @@ class FluidStep:
         ``"coupled"``, ``"rigid"`` or ``"prescribed"``.
     solver : str
         A backend of :mod:`multilayer.linsolve`.
+    reuse : Reuse
+        When a changing matrix is refactorized (:class:`multilayer.linsolve.Reuse`).
     """
 
     def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
-                 wall: str = "coupled", solver: str = "superlu"):
+                 wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse()):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
         self.channel = channel
@@ -130,6 +132,7 @@ class FluidStep:
         self.wall = wall
         self.solver = solver
         self.stats = SolverStats()
+        self._solver = ReusingSolver(self.stats, solver, reuse)
         self.assembly_s = 0.0
         self.ledger_s = 0.0
 
@@ -159,7 +162,6 @@ class FluidStep:
         self._static: dict[float, tuple] = {}  # rigid wall: kernels that depend on Δt/inertia only
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
-        self._last: tuple[np.ndarray, Factorized] | None = None  # the latest matrix and its factors
 
     @property
     def constant_matrix(self) -> bool:
@@ -266,23 +268,32 @@ class FluidStep:
 
     # -- solving --------------------------------------------------------------
     def solve(self, system: FluidSystem) -> Solution:
-        """Eliminate the Dirichlet DOFs, factorize (once per Δt when the matrix is constant) and solve."""
+        """Eliminate the Dirichlet DOFs and solve.
+
+        A constant matrix is factorized once per Δt; a changing one goes to
+        the :class:`~multilayer.linsolve.ReusingSolver` (a fresh factorization,
+        or GMRES preconditioned by an earlier one; the same data array again —
+        sub-iterations change only the wall's values — reuses its own factors).
+        """
         t0 = time.perf_counter()
         rhs = system.rhs[self.free] - self._block_fd.matrix(system.data) @ system.fixed_values
         self.assembly_s += time.perf_counter() - t0
-        key = (system.scheme.inertia * self.density / system.dt,)
-        lu = self._constant[key][1] if self.constant_matrix and key in self._constant else None
-        if lu is None and self._last is not None and self._last[0] is system.data:
-            lu = self._last[1]  # the same matrix again (sub-iterations change only the wall's data)
-        if lu is None:
-            lu = factorize(self._block_ff.matrix(system.data), self.stats, self.solver)
-            self._last = (system.data, lu)
-            if self.constant_matrix:
-                self._constant[key] = (system.own, lu)
         x = np.zeros(self.channel.ndofs)
         x[self.fixed] = system.fixed_values
-        x[self.free] = lu.solve(rhs)
+        if self.constant_matrix:
+            key = (system.scheme.inertia * self.density / system.dt,)
+            if key not in self._constant:
+                self._constant[key] = (system.own, factorize(self._block_ff.matrix(system.data), self.stats,
+                                                             self.solver))
+            x[self.free] = self._constant[key][1].solve(rhs)
+        else:
+            x[self.free] = self._solver.solve(self._block_ff.matrix(system.data), rhs, key=system.data)
         return self.advance(system, x)
+
+    @property
+    def last_matrix(self) -> sp.spmatrix | None:
+        """The latest changing matrix solved (free DOFs), None before the first or for a constant matrix."""
+        return self._solver.last
 
     def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
         """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode).
