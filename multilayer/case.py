@@ -112,6 +112,8 @@ class Case:
     solver: str = "superlu"
     #: when a changing matrix is refactorized (``[solver] reuse``)
     reuse: Reuse = Reuse()
+    #: BLAS threads during a run (0: the libraries' defaults; ``[solver] threads``)
+    threads: int = 1
     limits: Limits = Limits()
     #: the resolved case (defaults filled) as plain JSON-able data
     resolved: Mapping[str, Any] = attrs.field(factory=dict, eq=False)

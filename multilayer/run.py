@@ -37,6 +37,7 @@ from multilayer.interfaces import SchemeFailure
 from multilayer.registry import Registry
 from multilayer import checkpoint, ledger
 from multilayer.results import ResultsFolder
+from multilayer.threads import blas_threads
 from multilayer.setup import Setup
 from multilayer.state import State
 
@@ -174,7 +175,8 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, c
     """
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
-    return _run(case, results, registry, None, checkpoint_every, progress)
+    with blas_threads(case.threads):
+        return _run(case, results, registry, None, checkpoint_every, progress)
 
 
 def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
@@ -191,7 +193,8 @@ def resume_run(out: str | Path, until: float | None = None, registry: Registry |
     saved = checkpoint.load(Path(out), registry, until)
     results = ResultsFolder(Path(out), fresh=False)
     every = saved.checkpoint_every if checkpoint_every is None else checkpoint_every
-    return _run(saved.case, results, registry, saved, every, progress)
+    with blas_threads(getattr(saved.case, "threads", 1)):
+        return _run(saved.case, results, registry, saved, every, progress)
 
 
 def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoint.Checkpoint | None,
