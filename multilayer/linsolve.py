@@ -205,6 +205,9 @@ class ReusingSolver:
     held factorization (:func:`multilayer.krylov.preconditioned_gmres`); when
     that does not reach the tolerance within ``max_iterations`` the matrix is
     factorized and solved directly, and its factorization is held instead.
+    A matrix solved again right after (the same ``key``: the sub-iterations of
+    an implicit partitioned coupler) is factorized at its second solve, so
+    its further solves are back-substitutions.
 
     Parameters
     ----------
@@ -230,6 +233,7 @@ class ReusingSolver:
         self.stats, self.backend, self.reuse = stats, backend, reuse
         self._matrix = None  # the matrix whose factorization is held
         self.last: sp.spmatrix | None = None  #: the latest matrix solved (benchmarks factorize it afresh)
+        self._last_key = None
         self._factors: Factorized | None = None
 
     def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
@@ -250,10 +254,11 @@ class ReusingSolver:
         (e.g. the data array it is a block of); by default A itself.
         """
         key = A if key is None else key
-        self.last = A
+        again, self._last_key, self.last = self._last_key is key, key, A
         if self.holds(key):
             return self._factors.solve(b)
-        if self.reuse.mode == "krylov" and self._factors is not None and A.shape == self._shape:
+        # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
+        if self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape:
             from multilayer.krylov import preconditioned_gmres
 
             t0 = time.perf_counter()

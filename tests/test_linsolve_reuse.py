@@ -78,3 +78,14 @@ def test_coupled_run_with_krylov_matches_the_direct_run(tmp_path, coupler):
         k = np.array([float(r[key]) for r in rows_k])
         assert np.max(np.abs(k - d)) <= 1e-9 * np.max(np.abs(d)), key
     assert krylov["energy"]["max_relative_residual"] <= 1e-11
+
+
+def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
+    stats = SolverStats()
+    solver = ReusingSolver(stats, "superlu", Reuse())
+    first, second = drifting_matrices(steps=2)
+    solver.solve(first, np.ones(400))
+    for k in range(5):  # sub-iterations: one matrix, new right-hand sides
+        x = solver.solve(second, np.full(400, k + 1.0), key="step 2")
+        assert np.linalg.norm(second @ x - (k + 1.0)) <= 1e-12 * np.sqrt(400) * (k + 1.0)
+    assert stats.krylov_solves == 1 and stats.factorizations == 2
