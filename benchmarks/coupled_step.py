@@ -7,12 +7,18 @@ couplers take their steps **in turn** (step 1 of each, then step 2 of each,
 coupler it prints the median over the steps (the first, a warm-up, left out)
 of the wall time of a step and of its phases: assembly, factorization and
 solves of every system (fluid, wall, monolithic), and the ledger; the DOF
-counts; the ratio of the step to kinematic-splitting's and to one fresh
-factorization of the fluid system (the fluid's own median factorization).
+counts; the Krylov iterations per step; the ratio of the step to
+kinematic-splitting's and to one fresh factorization of the fluid system.
+That factorization is timed in the same loop, once per round of steps (a
+SuperLU — or ``solver.linear`` — factorization of the first run's latest
+fluid matrix, free DOFs), so the ratio compares times taken side by side
+whether or not the runs themselves refactorize.  ``--vary KEY=A,B`` runs
+every coupler once per value (e.g. ``solver.reuse=krylov,none``).
 
     python benchmarks/coupled_step.py                       # every coupler, 60 × 8 cells, 30 steps
     python benchmarks/coupled_step.py --set mesh.nz=240 --set mesh.nr=32 --steps 10
     python benchmarks/coupled_step.py --couplers '{model="monolithic",scheme="crank-nicolson"}'
+    python benchmarks/coupled_step.py --couplers '"kinematic-splitting"' --vary solver.reuse=krylov,none
 """
 
 from __future__ import annotations
@@ -25,8 +31,10 @@ import time
 from pathlib import Path
 
 from multilayer.casefile import load_case
+from multilayer.linsolve import SolverStats, factorize
 from multilayer.registry import Registry
 from multilayer.setup import Setup
+from multilayer.threads import blas_threads
 from multilayer.variants import split_values
 
 CASE = Path(__file__).parents[1] / "cases" / "pulse-koiter-thick.toml"
@@ -47,7 +55,20 @@ def counters(setup: Setup) -> dict[str, float]:
         out["ledger"] = setup.fluid.timings["ledger"]
         out["factorization.fluid"] = setup.fluid.stats.factorization_s
         out["solves.fluid"] = setup.fluid.stats.solve_s
+    stats = [*setup.solvers.values(), *([setup.fluid.stats] if setup.fluid is not None else [])]
+    out["krylov_iterations"] = float(sum(st.krylov_iterations for st in stats))
+    out["factorizations"] = float(sum(st.factorizations for st in stats))
     return out
+
+
+def fresh_factorization_s(setup: Setup) -> float | None:
+    """Seconds of one fresh factorization of the fluid's latest matrix (None before there is one)."""
+    A = getattr(setup.fluid.discrete, "last_matrix", None) if setup.fluid is not None else None
+    if A is None:
+        return None
+    t0 = time.perf_counter()
+    factorize(A, SolverStats(), setup.case.solver)
+    return time.perf_counter() - t0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,35 +77,54 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--couplers", default=",".join(COUPLERS), help="comma list of [coupler] values")
     ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--steps", type=int, default=30, help="steps per coupler (the first is a warm-up)")
+    ap.add_argument("--vary", action="append", default=[], metavar="KEY=A,B",
+                    help="run every coupler once per value of KEY (repeatable: the product)")
     args = ap.parse_args(argv)
     registry = Registry.load()
+    variants = [[]]
+    for vary in args.vary:
+        key, _, values = vary.partition("=")
+        variants = [[*v, f"{key}={value}"] for v in variants for value in split_values(values)]
     runs = {}
     for coupler in split_values(args.couplers):
-        case = load_case(args.case, [*args.sets, f"coupler={coupler}"], registry)
-        setup = Setup.build(case, registry)
-        state = setup.coupler.initial_state(setup)
-        runs[coupler] = {"setup": setup, "steps": setup.coupler.evolve(setup, state), "samples": []}
+        for sets in variants:
+            case = load_case(args.case, [*args.sets, *sets, f"coupler={coupler}"], registry)
+            setup = Setup.build(case, registry)
+            state = setup.coupler.initial_state(setup)
+            label = " ".join([coupler, *sets])
+            runs[label] = {"setup": setup, "steps": setup.coupler.evolve(setup, state), "samples": [],
+                           "coupler": coupler, "sets": sets}
+    fresh = []
+    reference = next(iter(runs.values()))["setup"]
     for _ in range(args.steps):
         for run in runs.values():
             before = counters(run["setup"])
-            t0 = time.perf_counter()
-            next(run["steps"])
-            wall = time.perf_counter() - t0
+            with blas_threads(run["setup"].case.threads):  # each run's [solver] threads, outside the timing
+                t0 = time.perf_counter()
+                next(run["steps"])
+                wall = time.perf_counter() - t0
             after = counters(run["setup"])
             run["samples"].append({"step": wall, **{k: after[k] - before.get(k, 0.0) for k in after}})
+        with blas_threads(reference.case.threads):
+            fresh.append(fresh_factorization_s(reference))
+    fresh = [f for f in fresh[1:] if f is not None]
+    fresh_s = statistics.median(fresh) if fresh else None
     rows = {}
-    for coupler, run in runs.items():
+    for label, run in runs.items():
         warm = run["samples"][1:] or run["samples"]
         keys = sorted({k for s in warm for k in s})
-        row = {"coupler": coupler, "dofs": run["setup"].dof_counts(), "steps": len(warm)}
+        row = {"coupler": run["coupler"], "sets": run["sets"], "dofs": run["setup"].dof_counts(),
+               "steps": len(warm)}
         row.update({f"median.{k}": statistics.median(s.get(k, 0.0) for s in warm) for k in keys})
-        rows[coupler] = row
-    baseline = rows.get(COUPLERS[0], next(iter(rows.values())))
-    fresh = baseline.get("median.factorization.fluid") or None
+        row["mean.krylov_iterations"] = statistics.fmean(s.get("krylov_iterations", 0.0) for s in warm)
+        row["mean.factorizations"] = statistics.fmean(s.get("factorizations", 0.0) for s in warm)
+        rows[label] = row
+    baseline = next(iter(rows.values()))
     for row in rows.values():
-        row["ratio_to_kinematic_splitting"] = row["median.step"] / baseline["median.step"]
-        if fresh:
-            row["ratio_to_one_fluid_factorization"] = row["median.step"] / fresh
+        row["ratio_to_first_run"] = row["median.step"] / baseline["median.step"]
+        if fresh_s:
+            row["median.fresh_fluid_factorization"] = fresh_s
+            row["ratio_to_one_fluid_factorization"] = row["median.step"] / fresh_s
         print(json.dumps(row), flush=True)
     return 0
 

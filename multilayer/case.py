@@ -12,6 +12,7 @@ from typing import Any
 import attrs
 
 from multilayer.formula import Formula
+from multilayer.linsolve import Reuse
 from multilayer.loads import PressureLoad
 
 
@@ -109,6 +110,10 @@ class Case:
     initial: Initial
     output: Output
     solver: str = "superlu"
+    #: when a changing matrix is refactorized (``[solver] reuse``)
+    reuse: Reuse = Reuse()
+    #: BLAS threads during a run (0: the libraries' defaults; ``[solver] threads``)
+    threads: int = 1
     limits: Limits = Limits()
     #: the resolved case (defaults filled) as plain JSON-able data
     resolved: Mapping[str, Any] = attrs.field(factory=dict, eq=False)

@@ -38,7 +38,7 @@ from multilayer.formula import Formula, FormulaError
 from multilayer.formula_domain import Domain, defect
 from multilayer.interfaces import Layer
 from multilayer.layer_checks import abstract_problem, raised, type_problem
-from multilayer.linsolve import BACKENDS
+from multilayer.linsolve import BACKENDS, REUSE_MODES, Reuse
 from multilayer.loads import FormulaPressure, load_from_spec
 from multilayer.partial import NotBuilt, Unbuilt
 from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
@@ -82,6 +82,15 @@ PROBE = (
 OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
 SOLVER = (
     Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
+    Param("reuse", type=str, default="krylov", choices=REUSE_MODES,
+          doc="a changing matrix: 'krylov' (GMRES preconditioned by an earlier factorization) or 'none' "
+              "(factorize every step)"),
+    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1,
+          doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
+    Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
+          doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
+    Param("threads", type=int, default=1, ge=0,
+          doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
     Param("max_displacement", "", "R", default=0.5, gt=0.0,
           doc="stop the run when |η| on the lumen exceeds this fraction of R"),
     Param("energy_margin", default=0.01, gt=0.0,
@@ -360,6 +369,9 @@ class _Validator:
         solver = self.section(data, "solver", SOLVER)
         parts["solver"] = self.part("solver", mark, lambda: solver["linear"])
         parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
+        parts["reuse"] = self.part("solver", mark,
+                                   lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"]))
+        parts["threads"] = self.part("solver", mark, lambda: solver["threads"])
         case = Case(**parts)
         self.add(self.objections(case))
         if self.problems:

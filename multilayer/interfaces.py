@@ -247,7 +247,12 @@ class Fluid(ABC):
     @abstractmethod
     def setup(self, length: float, radius: float, nz: int, nr: int, order: int = 2, grading: float = 1.0,
               wall: str = "coupled", solver: str = "superlu", line: LineSpace | None = None) -> Any:
-        """Discretize for a wall mode ``coupled``, ``rigid`` or ``prescribed``."""
+        """Discretize for a wall mode ``coupled``, ``rigid`` or ``prescribed``.
+
+        A fluid whose ``setup`` also takes a keyword ``reuse`` (a
+        :class:`multilayer.linsolve.Reuse`) is given the case's
+        ``[solver] reuse`` policy; one without it is set up as before.
+        """
 
     @property
     @abstractmethod

@@ -5,6 +5,12 @@ up by name; ``"superlu"`` (scipy) is always there, ``"pardiso"`` (MKL PARDISO
 through pypardiso, the optional extra ``fast``) when that is installed.  Every
 factorization is counted and timed on the :class:`SolverStats` passed in, so a
 run can prove that a matrix which never changes was factorized once.
+
+A matrix that changes a little every step (the fluid's Oseen matrix, the
+monolithic system) is solved by a :class:`ReusingSolver`: GMRES
+preconditioned by the factorization of an earlier step's matrix, which is
+refactorized only when GMRES needs more than a bound of iterations
+(:class:`Reuse`, ``[solver] reuse``; :mod:`multilayer.krylov`).
 """
 
 from __future__ import annotations
@@ -22,12 +28,26 @@ import scipy.sparse.linalg as spla
 
 @attrs.define
 class SolverStats:
-    """Counts and seconds of factorizations and solves."""
+    """Counts and seconds of factorizations and solves.
+
+    ``solves`` counts back-substitutions with a factorization (also those a
+    Krylov solve uses as its preconditioner); ``krylov_solves`` the systems
+    solved by a preconditioned Krylov method and ``krylov_iterations`` their
+    iterations (one matrix–vector product and one back-substitution each);
+    ``krylov_s`` the seconds of those solves (their back-substitutions
+    included, so they are also in ``solve_s``).
+    """
 
     factorizations: int = 0
     solves: int = 0
     factorization_s: float = 0.0
     solve_s: float = 0.0
+    krylov_solves: int = 0
+    krylov_iterations: int = 0
+    krylov_s: float = 0.0
+    #: set by the runner after a checkpoint: the system's next solve factorizes afresh, as the first solve of a
+    #: run resumed from that checkpoint must, so the two runs stay bit-identical
+    refactorize: bool = False
 
 
 class Factorized:
@@ -140,3 +160,118 @@ def factorize(A: sp.spmatrix, stats: SolverStats, backend: str = "superlu") -> F
     stats.factorizations += 1
     stats.factorization_s += time.perf_counter() - t0
     return Factorized(solve, stats)
+
+
+# -- reuse of an earlier factorization ------------------------------------------
+REUSE_MODES = ("krylov", "none")
+
+
+@attrs.frozen
+class Reuse:
+    """When a changing matrix is refactorized (``[solver] reuse``, ``max_iterations``, ``tolerance``).
+
+    Attributes
+    ----------
+    mode : str
+        ``"krylov"``: solve with GMRES preconditioned by the factorization of
+        an earlier matrix; ``"none"``: factorize every new matrix.
+    max_iterations : int
+        GMRES iterations above which the preconditioner is refactorized: a
+        solve that needs more is redone with a fresh factorization of its own
+        matrix, which then preconditions the following steps.
+    tolerance : float
+        Relative residual ‖b − A x‖₂ ≤ tolerance · ‖b‖₂ a Krylov solve must
+        reach (checked on the true residual).  The default 1e-12 keeps every
+        energy ledger within 1e-11 of round-off closure (docs/performance.md,
+        "The tolerance").
+    """
+
+    mode: str = "krylov"
+    max_iterations: int = 8
+    tolerance: float = 1e-12
+
+    def __attrs_post_init__(self):
+        if self.mode not in REUSE_MODES:
+            raise ValueError(f"reuse mode {self.mode!r} is not one of {REUSE_MODES}")
+        if self.max_iterations < 1:
+            raise ValueError(f"max_iterations must be ≥ 1, got {self.max_iterations!r}")
+        if not 0.0 < self.tolerance < 1.0:
+            raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance!r}")
+
+
+class ReusingSolver:
+    """Solves A x = b for a sequence of matrices of one size, refactorizing only when needed.
+
+    With ``reuse.mode == "none"`` every new matrix is factorized (a matrix
+    passed again as the same object reuses its own factorization).  With
+    ``"krylov"`` a new matrix is solved by right-preconditioned GMRES with the
+    held factorization (:func:`multilayer.krylov.preconditioned_gmres`); when
+    that does not reach the tolerance within ``max_iterations`` the matrix is
+    factorized and solved directly, and its factorization is held instead.
+    A matrix solved again right after (the same ``key``: the sub-iterations of
+    an implicit partitioned coupler) is factorized at its second solve, so
+    its further solves are back-substitutions.
+
+    Parameters
+    ----------
+    stats : SolverStats
+        Where factorizations, solves and Krylov iterations are counted.
+    backend : str
+        A backend of :data:`BACKENDS`.
+    reuse : Reuse
+        The policy.
+
+    Examples
+    --------
+    >>> A = sp.diags([4.0, 5.0, 6.0]).tocsr()
+    >>> st = SolverStats()
+    >>> solver = ReusingSolver(st, "superlu", Reuse())
+    >>> x = solver.solve(A, np.ones(3))
+    >>> x = solver.solve(A * 1.001, np.ones(3))     # a nearby matrix: GMRES on the old factors
+    >>> bool(np.allclose(A * 1.001 @ x, 1.0, rtol=1e-12)), st.factorizations, st.krylov_solves
+    (True, 1, 1)
+    """
+
+    def __init__(self, stats: SolverStats, backend: str = "superlu", reuse: Reuse = Reuse()):
+        self.stats, self.backend, self.reuse = stats, backend, reuse
+        self._matrix = None  # the matrix whose factorization is held
+        self.last: sp.spmatrix | None = None  #: the latest matrix solved (benchmarks factorize it afresh)
+        self._last_key = None
+        self._factors: Factorized | None = None
+
+    def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
+        """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves."""
+        self._factors = factorize(A, self.stats, self.backend)
+        self._matrix = A if key is None else key
+        self._shape = A.shape
+        return self._factors
+
+    def holds(self, key) -> bool:
+        """True when the held factorization is of the matrix ``key`` stands for (compared by identity)."""
+        return self._factors is not None and self._matrix is key
+
+    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None) -> np.ndarray:
+        """x with A x = b: directly when the factors are A's, else by GMRES on the held ones or a fresh LU.
+
+        ``key`` stands for A when A is rebuilt from data that did not change
+        (e.g. the data array it is a block of); by default A itself.
+        """
+        key = A if key is None else key
+        if self.stats.refactorize:
+            self.stats.refactorize, self._factors, self._matrix = False, None, None
+        again, self._last_key, self.last = self._last_key is key, key, A
+        if self.holds(key):
+            return self._factors.solve(b)
+        # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
+        if self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape:
+            from multilayer.krylov import preconditioned_gmres
+
+            t0 = time.perf_counter()
+            x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
+                                                 self.reuse.max_iterations)
+            self.stats.krylov_iterations += iterations
+            self.stats.krylov_s += time.perf_counter() - t0
+            if x is not None:
+                self.stats.krylov_solves += 1
+                return x
+        return self.factorize(A, key).solve(b)

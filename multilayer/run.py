@@ -37,6 +37,7 @@ from multilayer.interfaces import SchemeFailure
 from multilayer.registry import Registry
 from multilayer import checkpoint, ledger
 from multilayer.results import ResultsFolder
+from multilayer.threads import blas_threads
 from multilayer.setup import Setup
 from multilayer.state import State
 
@@ -174,7 +175,8 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, c
     """
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
-    return _run(case, results, registry, None, checkpoint_every, progress)
+    with blas_threads(case.threads):
+        return _run(case, results, registry, None, checkpoint_every, progress)
 
 
 def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
@@ -191,7 +193,8 @@ def resume_run(out: str | Path, until: float | None = None, registry: Registry |
     saved = checkpoint.load(Path(out), registry, until)
     results = ResultsFolder(Path(out), fresh=False)
     every = saved.checkpoint_every if checkpoint_every is None else checkpoint_every
-    return _run(saved.case, results, registry, saved, every, progress)
+    with blas_threads(getattr(saved.case, "threads", 1)):
+        return _run(saved.case, results, registry, saved, every, progress)
 
 
 def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoint.Checkpoint | None,
@@ -243,6 +246,8 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
                 if checkpoint_every and (state.n % checkpoint_every == 0 or interrupted()):
                     checkpoint.save(results.path, case, registry, state, tally, results.snapshots, checkpoint_every,
                                     time.perf_counter() - wall_t0)
+                    for stats in _all_stats(setup):  # a resumed run has no factors: neither may this one
+                        stats.refactorize = True
                 if interrupted():
                     raise Interrupted(interrupted())
     except Interrupted as exc:
@@ -273,6 +278,7 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
         "wall_time_s": tally.wall_time_s + time.perf_counter() - wall_t0,
         "timings": _timings(setup),
         "factorizations": _factorizations(setup),
+        "krylov": _krylov(setup),
         "energy": {"max_relative_residual": tally.max_rel},
         **_iterations(tally.iterations),
         **({"resumed_from": resumed_from} if saved is not None else {}),
@@ -342,6 +348,11 @@ def _scheme(setup: Setup | None) -> dict[str, object]:
     return {"name": scheme.name, "order": scheme.order} if scheme is not None else {}
 
 
+def _all_stats(setup: Setup) -> list:
+    """The counters of every system of the run: the coupler's (``setup.solvers``) and the fluid's."""
+    return [*setup.solvers.values(), *([setup.fluid.stats] if setup.fluid is not None else [])]
+
+
 def _factorizations(setup: Setup | None) -> dict[str, int]:
     """Factorizations per system: the coupler's own (``wall``, ``monolithic``, ...) and the fluid's."""
     out = {"wall": 0}
@@ -351,6 +362,17 @@ def _factorizations(setup: Setup | None) -> dict[str, int]:
     if setup.fluid is not None:
         out["fluid"] = setup.fluid.stats.factorizations
     return out
+
+
+def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
+    """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``)."""
+    if setup is None:
+        return {}
+    stats = dict(setup.solvers)
+    if setup.fluid is not None:
+        stats["fluid"] = setup.fluid.stats
+    return {name: {"solves": st.krylov_solves, "iterations": st.krylov_iterations}
+            for name, st in stats.items() if getattr(st, "krylov_solves", 0) or getattr(st, "krylov_iterations", 0)}
 
 
 def _timings(setup: Setup | None) -> dict[str, float]:

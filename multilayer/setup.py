@@ -10,6 +10,7 @@ it; they are counters, not state.)
 
 from __future__ import annotations
 
+import inspect
 import time
 from typing import Any
 
@@ -81,8 +82,9 @@ class Setup:
             stack = Stack.assemble(wall)
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
+            extra = {"reuse": case.reuse} if "reuse" in inspect.signature(fluid.setup).parameters else {}
             fluid.setup(g.length, g.radius, m.nz, m.nr, m.order, m.grading, coupler.fluid_wall(case),
-                        case.solver, line=line)
+                        case.solver, line=line, **extra)
         setup = cls(case=case, registry=registry, layers=layers, coupler=coupler, fluid=fluid, wall=wall,
                     stack=stack)
         setup.timings["assembly"] += time.perf_counter() - t0

@@ -27,7 +27,7 @@ from multilayer.assembly.pattern import Pattern
 from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, window_loads
 from multilayer.hookspecs import hookimpl
 from multilayer.interfaces import Coupler, Domain, StepReport
-from multilayer.linsolve import factorize
+from multilayer.linsolve import ReusingSolver
 from multilayer.records import CouplerPlugin
 from multilayer.state import State
 from multilayer.structure import StructureStep, wall_energy
@@ -69,7 +69,7 @@ class Monolithic(Coupler):
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
         A_wall = sp.coo_matrix(structure.matrix())
-        stats = setup.stats("monolithic")
+        solver = ReusingSolver(setup.stats("monolithic"), setup.case.solver, setup.case.reuse)
         layout = None
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
@@ -91,7 +91,7 @@ class Monolithic(Coupler):
             x = np.zeros(n)
             x[fixed_f] = values_f
             rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
-            x[layout.free] = factorize(layout.free_free.matrix(data), stats, setup.case.solver).solve(rhs)
+            x[layout.free] = solver.solve(layout.free_free.matrix(data), rhs)
             # each part takes back its share of the solution
             solution = fluid.advance(system, x[: fluid.ndofs])
             w = structure.finish(history, x[glob], forces)

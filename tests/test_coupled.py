@@ -214,15 +214,32 @@ def test_every_new_coupler_is_stable_at_the_lightest_wall(tmp_path, coupler):
 
 @pytest.mark.parametrize("coupler", COUPLERS)
 def test_factorizations_per_coupler(coupler, tmp_path):
-    """The wall is factorized once by a partitioned scheme, never by the monolithic one (its matrix is borrowed)."""
-    code, summary, _ = run("pulse-koiter-thick", tmp_path / coupler, *COARSE, f"coupler={COUPLERS[coupler]}")
+    """The wall is factorized once by a partitioned scheme, never by the monolithic one (its matrix is borrowed).
+
+    With ``solver.reuse = "none"`` the changing system (the fluid's, or the
+    monolithic one) is factorized every step; with the default ``"krylov"``
+    every step's system is still solved once — by a factorization or by
+    GMRES on an earlier one — but factorized only when GMRES needs more than
+    ``max_iterations`` (measured: once in these 20 steps).
+    """
+    system = "fluid" if coupler.startswith("splitting") else "monolithic"
+    code, summary, _ = run("pulse-koiter-thick", tmp_path / coupler, *COARSE, f"coupler={COUPLERS[coupler]}",
+                           "solver.reuse=none")
     assert code == 0
     f = summary["factorizations"]
     if coupler.startswith("splitting"):
         assert f == {"wall": 1, "fluid": 20}
     else:
         assert f == {"wall": 0, "monolithic": 20, "fluid": 0}
+    assert summary["krylov"] == {}
     assert summary["scheme"]["order"] == (2 if coupler in SECOND_ORDER else 1)
+    code, summary, _ = run("pulse-koiter-thick", tmp_path / f"{coupler}-krylov", *COARSE,
+                           f"coupler={COUPLERS[coupler]}")
+    assert code == 0
+    f, k = summary["factorizations"], summary["krylov"][system]
+    assert f["wall"] == (1 if system == "fluid" else 0)
+    assert 1 <= f[system] < 20 and f[system] + k["solves"] == 20
+    assert k["iterations"] >= k["solves"] and k["iterations"] <= 20 * summary["case"]["solver"]["max_iterations"]
 
 
 def test_thick_first_layer_is_rejected(tmp_path, capsys):

@@ -95,7 +95,8 @@ def test_prescribed_wall_mass_balance(prescribed):
     w = WALL
     assert code == 0 and summary["status"] == "ok" and summary["steps"] == 20
     assert summary["energy"]["max_relative_residual"] <= 1e-10
-    assert summary["factorizations"]["fluid"] == summary["steps"]  # the domain moves: a new matrix every step
+    # the domain moves: a new matrix every step, factorized or solved by GMRES on an earlier factorization
+    assert summary["factorizations"]["fluid"] + summary["krylov"]["fluid"]["solves"] == summary["steps"]
     t = column(rows, "t")
     rate = (area(t) - area(t - w["dt"])) / w["dt"]
     # The scheme conserves the area of the P2 interpolant of η exactly; its

@@ -109,5 +109,7 @@ def test_stokes_factorizes_once_and_navier_stokes_every_step():
     stokes, _, _ = run(Stokes, 2, 2, 2, PERIOD / 20, 3, False)
     navier, _, _ = run(NavierStokes, 2, 2, 2, PERIOD / 20, 3, False)
     assert stokes.discrete.stats.factorizations == 1
-    assert navier.discrete.stats.factorizations == 3
-    assert stokes.discrete.stats.solves == navier.discrete.stats.solves == 3
+    # the Oseen matrix changes every step: factorized, or solved by GMRES on an earlier factorization
+    st = navier.discrete.stats
+    assert st.factorizations + st.krylov_solves == 3 and st.factorizations >= 1
+    assert stokes.discrete.stats.solves == 3

@@ -95,6 +95,8 @@ class BatchedForm:
         self.dx = ubasis.dx
         self.x = np.asarray(ubasis.global_coordinates())
         self._xi_u = jets(ubasis)
+        f = ubasis.basis[0][0]
+        self._vshape, self._gshape = np.shape(f)[:-2], np.shape(f.grad)[:-2]
         xi_v = jets(vbasis)
         ne, nq, nv, ni = xi_v.shape
         self._xi_v_t = xi_v.reshape(ne, nq * nv, ni).transpose(0, 2, 1).copy()  # (e, i, q·jet)
@@ -131,6 +133,23 @@ class BatchedForm:
         y = np.einsum("eqnm,eqm->eqn", K, xi).reshape(self.nelems, -1)
         local = np.einsum("eik,ek->ie", self._xi_v_t, y)
         return np.bincount(self._vdofs.ravel(), weights=local.ravel(), minlength=self._nv_dofs)
+
+    def trial_jets(self, u: np.ndarray, values_only: bool = False) -> np.ndarray:
+        """The jets of the trial-space function with DOFs ``u`` at every quadrature point: (jet, elements, points).
+
+        With ``values_only`` only the value components (the first rows of a jet).
+        """
+        xi = self._xi_u[:, :, : int(np.prod(self._vshape, dtype=int))] if values_only else self._xi_u
+        return np.einsum("eqmj,je->meq", xi, u[self._udofs])
+
+    def field(self, u: np.ndarray) -> Field:
+        """The trial-space function with DOFs ``u`` as a form argument (values, ``.grad``) at the quadrature points.
+
+        The same numbers as ``ubasis.interpolate(u)``, from the jets stacked at setup.
+        """
+        jet = self.trial_jets(u)
+        nv = int(np.prod(self._vshape, dtype=int))
+        return _field(jet[:nv].reshape(*self._vshape, *jet.shape[1:]), jet[nv:].reshape(*self._gshape, *jet.shape[1:]))
 
     def data(self, form, **w) -> np.ndarray:
         """Element matrices of ``form`` (a ``skfem.BilinearForm``) with extra fields ``w``."""

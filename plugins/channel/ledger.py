@@ -1,14 +1,21 @@
-"""Quadratures of the fluid's energy identity: kinetic energy and end fluxes.
+"""Quadratures of the fluid's energy identity: kinetic energy, viscous dissipation, end fluxes.
 
-They are evaluated with the quadrature of the assembly, independently of the
-assembled matrices, so the identity of :meth:`~multilayer_plugins.channel.step.FluidStep.identity`
-is a real check of the step: it closes to round-off.
+The terms are evaluated at the quadrature points of the assembly, from the
+basis jets :class:`multilayer.assembly.batched.BatchedForm` stacked at setup
+(one contraction per field, no second pass of scikit-fem interpolation and
+functional assembly), with the integrands of :mod:`multilayer_plugins.channel.forms`.
+They do not use the assembled matrix: each kinetic energy is weighted by the
+J of the domain it belongs to (ηⁿ, η^{n+1}), not by the step's J_m, so the
+identity of :meth:`~multilayer_plugins.channel.step.FluidStep.identity` is a
+real check of the step (docs/performance.md, "The ledger").
 """
 
 from __future__ import annotations
 
 import numpy as np
+from skfem.assembly.form.form import FormExtraParams
 
+from multilayer.assembly.batched import BatchedForm
 from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.channel import Channel
@@ -24,3 +31,28 @@ def end_fluxes(channel: Channel, fields: ALEFields, u: np.ndarray) -> tuple[floa
     q_in = -float(forms.normal_flux.assemble(channel.inlet, u=channel.inlet.interpolate(u), J=fields.J_in))
     q_out = float(forms.normal_flux.assemble(channel.outlet, u=channel.outlet.interpolate(u), J=fields.J_out))
     return q_in, q_out
+
+
+class Quadrature:
+    """The identity's integrals on the velocity space's quadrature, from the assembly's basis jets.
+
+    Parameters
+    ----------
+    form : BatchedForm
+        The velocity block's batched form (its jets and weights dx).
+    density : float
+        ρ_f.
+    """
+
+    def __init__(self, form: BatchedForm, density: float):
+        self.form, self.density = form, density
+
+    def kinetic(self, J: np.ndarray, u: np.ndarray) -> float:
+        """½ρ_f ∫ J |u|², as :func:`fluid_kinetic` (to round-off)."""
+        v = self.form.trial_jets(u, values_only=True)
+        return 0.5 * self.density * float(np.sum(self.form.dx * J * (v[0] * v[0] + v[1] * v[1])))
+
+    def strain_squared(self, u: np.ndarray, fields: ALEFields) -> float:
+        """∫ J |D^η(u)|² (the integrand :data:`forms.strain_squared`)."""
+        w = FormExtraParams({"u": self.form.field(u), **fields.forms_kwargs()})
+        return float(np.sum(self.form.dx * forms.strain_squared.form(w)))

@@ -20,7 +20,7 @@ from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ledger import fluid_kinetic
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 from multilayer.interfaces import Fluid, LineSpace
-from multilayer.linsolve import SolverStats
+from multilayer.linsolve import Reuse, SolverStats
 from multilayer.records import Param
 
 #: The parameters of every channel fluid, for its plugin record.
@@ -78,16 +78,18 @@ class ChannelFluid(Fluid):
         wall: str = "coupled",
         solver: str = "superlu",
         line: LineSpace | None = None,
+        reuse: Reuse = Reuse(),
     ) -> FluidStep:
         """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``.
 
         ``wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
         :mod:`multilayer_plugins.channel.step`); ``line`` is the interface line's space
-        when the caller already has it.  Returns the discretization, which is
+        when the caller already has it; ``reuse`` when a changing matrix is
+        refactorized (:class:`multilayer.linsolve.Reuse`).  Returns the discretization, which is
         also kept on the fluid for the methods below.
         """
         channel = Channel.build(length, radius, nz, nr, order, grading, line)
-        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, wall, solver)
+        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, wall, solver, reuse)
         return self._discrete
 
     @property

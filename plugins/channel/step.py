@@ -43,13 +43,13 @@ import scipy.sparse as sp
 from multilayer.assembly.batched import BatchedForm
 from multilayer.assembly.pattern import Pattern
 from multilayer.interfaces import Domain, Interface
-from multilayer.linsolve import Factorized, SolverStats, factorize
+from multilayer.linsolve import Factorized, Reuse, ReusingSolver, SolverStats, factorize
 from multilayer.spaces import prolongation_dofs
 from multilayer.timescheme import TimeScheme, levels
 from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.channel import Channel
-from multilayer_plugins.channel.ledger import end_fluxes, fluid_kinetic
+from multilayer_plugins.channel.ledger import Quadrature
 
 WALL_MODES = ("coupled", "rigid", "prescribed")
 
@@ -117,10 +117,12 @@ class FluidStep:
         ``"coupled"``, ``"rigid"`` or ``"prescribed"``.
     solver : str
         A backend of :mod:`multilayer.linsolve`.
+    reuse : Reuse
+        When a changing matrix is refactorized (:class:`multilayer.linsolve.Reuse`).
     """
 
     def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
-                 wall: str = "coupled", solver: str = "superlu"):
+                 wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse()):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
         self.channel = channel
@@ -130,6 +132,7 @@ class FluidStep:
         self.wall = wall
         self.solver = solver
         self.stats = SolverStats()
+        self._solver = ReusingSolver(self.stats, solver, reuse)
         self.assembly_s = 0.0
         self.ledger_s = 0.0
 
@@ -153,13 +156,13 @@ class FluidStep:
         self._block_ff = self.pattern.block(self.free, self.free)
         self._block_fd = self.pattern.block(self.free, self.fixed)
 
+        self._quadrature = Quadrature(self._uu, density)
         self._load_in = forms.dynamic_pressure.assemble(channel.inlet, J=1.0)
         self._load_out = forms.dynamic_pressure.assemble(channel.outlet, J=1.0)
         self._rigid = ALEFields.rigid(channel)
         self._static: dict[float, tuple] = {}  # rigid wall: kernels that depend on Δt/inertia only
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
-        self._last: tuple[np.ndarray, Factorized] | None = None  # the latest matrix and its factors
 
     @property
     def constant_matrix(self) -> bool:
@@ -246,8 +249,11 @@ class FluidStep:
             div = self._pu.matrix_data(K_div)
             own = self.pattern.fill([(self._slots_uu, self._uu.matrix_data(K)), (self._slots_pu, div),
                                      (self._slots_up, -div)])
-        data = self.pattern.fill([(np.arange(self.pattern.nnz), own), *self._interface_terms(interface)]) \
-            if interface is not None else own
+        data = own
+        if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
+            data = own.copy()
+            for slots, values in self._interface_terms(interface):
+                np.add.at(data, slots, values)
         own_rhs = np.zeros(ch.ndofs)
         h = scheme.history([s.u for s in hist])
         own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply(K_mass, h)
@@ -266,23 +272,32 @@ class FluidStep:
 
     # -- solving --------------------------------------------------------------
     def solve(self, system: FluidSystem) -> Solution:
-        """Eliminate the Dirichlet DOFs, factorize (once per Δt when the matrix is constant) and solve."""
+        """Eliminate the Dirichlet DOFs and solve.
+
+        A constant matrix is factorized once per Δt; a changing one goes to
+        the :class:`~multilayer.linsolve.ReusingSolver` (a fresh factorization,
+        or GMRES preconditioned by an earlier one; the same data array again —
+        sub-iterations change only the wall's values — reuses its own factors).
+        """
         t0 = time.perf_counter()
         rhs = system.rhs[self.free] - self._block_fd.matrix(system.data) @ system.fixed_values
         self.assembly_s += time.perf_counter() - t0
-        key = (system.scheme.inertia * self.density / system.dt,)
-        lu = self._constant[key][1] if self.constant_matrix and key in self._constant else None
-        if lu is None and self._last is not None and self._last[0] is system.data:
-            lu = self._last[1]  # the same matrix again (sub-iterations change only the wall's data)
-        if lu is None:
-            lu = factorize(self._block_ff.matrix(system.data), self.stats, self.solver)
-            self._last = (system.data, lu)
-            if self.constant_matrix:
-                self._constant[key] = (system.own, lu)
         x = np.zeros(self.channel.ndofs)
         x[self.fixed] = system.fixed_values
-        x[self.free] = lu.solve(rhs)
+        if self.constant_matrix:
+            key = (system.scheme.inertia * self.density / system.dt,)
+            if key not in self._constant:
+                self._constant[key] = (system.own, factorize(self._block_ff.matrix(system.data), self.stats,
+                                                             self.solver))
+            x[self.free] = self._constant[key][1].solve(rhs)
+        else:
+            x[self.free] = self._solver.solve(self._block_ff.matrix(system.data), rhs, key=system.data)
         return self.advance(system, x)
+
+    @property
+    def last_matrix(self) -> sp.spmatrix | None:
+        """The latest changing matrix solved (free DOFs), None before the first or for a constant matrix."""
+        return self._solver.last
 
     def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
         """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode).
@@ -316,7 +331,7 @@ class FluidStep:
     # -- the energy identity ----------------------------------------------------
     def identity(self, system: FluidSystem, solution: Solution, eta_old: np.ndarray,
                  eta_new: np.ndarray) -> dict[str, float]:
-        """Every term of the step's energy identity, each computed by quadrature from the fields.
+        """Every term of the step's energy identity, from quadrature of the fields and the load vectors.
 
         Testing the step with x̄ (q_J(x) = ½ρ_f∫J|x|², E the scheme's stored energy):
 
@@ -328,9 +343,18 @@ class FluidStep:
         ∂_t J = (J^{n+1} − Jⁿ)/Δt, the kinematically coupled scheme's choice.
         ``interface`` = Δt v̄·(R v̄ − r) is the power handed to the coupler's
         interface terms; ``wall.work`` the power of a prescribed wall.
+
+        Where each term comes from: the kinetic, numerical and geometric
+        terms and the viscous dissipation by quadrature of the fields at the
+        assembly's points (:class:`~multilayer_plugins.channel.ledger.Quadrature`,
+        weights J^{n+1}, Jⁿ, J^{n+1} − J_m, ∂_t J — never the matrix that was
+        solved); the end fluxes from the assembled load vectors (the work of
+        the loads is their right-hand side tested with ū); the interface and
+        wall powers from the coupler's data.  docs/performance.md, "The ledger".
         """
         t0 = time.perf_counter()
         ch, S, dt, fields = self.channel, system.scheme, system.dt, system.fields
+        quad = self._quadrature
         us = [solution.state.u, *[s.u for s in system.history]]
         ubar = solution.mean[: ch.nu]
         R = ch.radius
@@ -338,18 +362,20 @@ class FluidStep:
         J_new = 1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R
 
         def q(J):
-            return lambda x: fluid_kinetic(ch, self.density, J, x)
+            return lambda x: quad.kinetic(J, x)
 
         stored_new = S.stored(q(J_new), us)
         stored_old = S.stored(q(J_old), us[1:])
         geometric = (S.stored(q(J_new - fields.J), us) - S.stored(q(J_old - fields.J), us[1:])
-                     - dt * fluid_kinetic(ch, self.density, fields.dJdt, ubar))
-        strain = forms.strain_squared.assemble(ch.velocity, u=ch.velocity.interpolate(ubar), **fields.forms_kwargs())
-        q_in, q_out = end_fluxes(ch, fields, ubar)
+                     - dt * quad.kinetic(fields.dJdt, ubar))
+        strain = quad.strain_squared(ubar, fields)
+        # Q_in = −∫_Γin J u·n, Q_out = ∫_Γout J u·n: the load vectors are −∫ q·n on each end
+        q_in = fields.J_in * float(self._load_in @ ubar)
+        q_out = -fields.J_out * float(self._load_out @ ubar)
         terms = {
             "kinetic.fluid": stored_new,
             "kinetic.fluid_before": stored_old,
-            "dissipation.viscous.fluid": 2.0 * self.viscosity * dt * float(strain),
+            "dissipation.viscous.fluid": 2.0 * self.viscosity * dt * strain,
             "dissipation.numerical.fluid": S.numerical(q(fields.J), us),
             "dissipation.geometric.fluid": -geometric,
             "work.inlet": dt * system.p_in * q_in,

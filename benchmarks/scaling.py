@@ -1,0 +1,132 @@
+"""Time per coupled step and peak memory against the number of unknowns, and the fitted exponent.
+
+Not a test: nothing is asserted.  For each mesh (``nz × nr`` fluid cells; the
+wall's bands get ``nz`` axial cells as well) it builds the quick-start case
+(``cases/pulse-koiter-thick.toml``, kinematic splitting by default) in a
+**fresh process** — so that the peak resident memory (``ru_maxrss`` of
+``resource.getrusage``) is that mesh's — runs ``--steps`` steps and prints
+one JSON object: unknowns (fluid + wall), median seconds per step (the
+first step, which factorizes, left out; reported apart), its phases,
+factorizations and Krylov iterations, a fresh factorization of the fluid
+system timed in the same process, and peak RSS.  At the end it prints the
+least-squares exponent p of time per step ∝ N^p over the meshes with at
+least ``--fit-from`` unknowns.
+
+    python benchmarks/scaling.py                                   # 5k → ~1e6 unknowns
+    python benchmarks/scaling.py --meshes 60x8 120x16 240x32 --steps 6
+    python benchmarks/scaling.py --set solver.reuse=none --no-fresh
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+CASE = Path(__file__).parents[1] / "cases" / "pulse-koiter-thick.toml"
+MESHES = ("60x8", "120x16", "240x32", "480x64", "960x128", "1440x192")
+
+
+def one(mesh: str, steps: int, sets: list[str], fresh: bool) -> dict:
+    """Run ``steps`` steps on ``mesh`` in this process; the row to print."""
+    from multilayer.casefile import load_case
+    from multilayer.linsolve import SolverStats, factorize
+    from multilayer.registry import Registry
+    from multilayer.setup import Setup
+    from multilayer.threads import blas_threads
+
+    nz, nr = (int(k) for k in mesh.split("x"))
+    registry = Registry.load()
+    case = load_case(CASE, [f"mesh.nz={nz}", f"mesh.nr={nr}", "time.end=1", *sets], registry)
+    with blas_threads(case.threads):
+        t0 = time.perf_counter()
+        setup = Setup.build(case, registry)
+        state = setup.coupler.initial_state(setup)
+        build_s = time.perf_counter() - t0
+        run = setup.coupler.evolve(setup, state)
+        fluid = setup.fluid
+        samples = []
+        for _ in range(steps):
+            before = _counters(setup)
+            t0 = time.perf_counter()
+            next(run)
+            samples.append({"step": time.perf_counter() - t0,
+                            **{k: v - before[k] for k, v in _counters(setup).items()}})
+        fresh_s = None
+        if fresh and fluid.discrete.last_matrix is not None:
+            t0 = time.perf_counter()
+            factorize(fluid.discrete.last_matrix, SolverStats(), case.solver)
+            fresh_s = time.perf_counter() - t0
+    warm = samples[1:] or samples
+    dofs = setup.dof_counts()
+    n = dofs.get("fluid", 0) + dofs.get("wall", 0)
+    row = {"mesh": mesh, "unknowns": n, "dofs": dofs, "steps": len(warm), "build_s": build_s,
+           "first_step_s": samples[0]["step"],
+           **{f"median.{k}": statistics.median(s[k] for s in warm) for k in samples[0]},
+           "fresh_fluid_factorization_s": fresh_s,
+           "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
+    row["peak_rss_kb_per_unknown"] = row["peak_rss_mb"] * 1024.0 / n
+    if fresh_s:
+        row["ratio_to_one_fluid_factorization"] = row["median.step"] / fresh_s
+    return row
+
+
+def _counters(setup) -> dict[str, float]:
+    stats = [*setup.solvers.values(), setup.fluid.stats]
+    t = setup.fluid.timings
+    return {"assembly": t["assembly"], "ledger": t["ledger"],
+            "factorization": sum(s.factorization_s for s in stats), "solves": sum(s.solve_s for s in stats),
+            "krylov": sum(s.krylov_s for s in stats), "factorizations": float(sum(s.factorizations for s in stats)),
+            "krylov_iterations": float(sum(s.krylov_iterations for s in stats)),
+            "structure": setup.solvers["wall"].solve_s if "wall" in setup.solvers else 0.0}
+
+
+def exponent(rows: list[dict], start: int) -> float | None:
+    """Least-squares slope of log(time per step) against log(unknowns) over rows with ≥ ``start`` unknowns."""
+    pts = [(math.log(r["unknowns"]), math.log(r["median.step"])) for r in rows if r["unknowns"] >= start]
+    if len(pts) < 2:
+        return None
+    mx = statistics.fmean(x for x, _ in pts)
+    my = statistics.fmean(y for _, y in pts)
+    return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", nargs="+", default=list(MESHES), metavar="NZxNR")
+    ap.add_argument("--steps", type=int, default=4, help="steps per mesh (the first is left out)")
+    ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--fit-from", type=int, default=20_000, help="fit the exponent from this many unknowns up")
+    ap.add_argument("--no-fresh", dest="fresh", action="store_false", help="skip the fresh factorization")
+    ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per mesh before giving up")
+    ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mesh in this process
+    args = ap.parse_args(argv)
+    if args.one:
+        print(json.dumps(one(args.one, args.steps, args.sets, args.fresh)), flush=True)
+        return 0
+    rows = []
+    for mesh in args.meshes:
+        cmd = [sys.executable, __file__, "--one", mesh, "--steps", str(args.steps),
+               *[a for s in args.sets for a in ("--set", s)], *([] if args.fresh else ["--no-fresh"])]
+        try:
+            out = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            print(json.dumps({"mesh": mesh, "error": f"over {args.timeout:.0f} s"}), flush=True)
+            break
+        if out.returncode != 0:
+            print(json.dumps({"mesh": mesh, "error": out.stderr.strip().splitlines()[-1:]}), flush=True)
+            break
+        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        print(json.dumps(rows[-1]), flush=True)
+    print(json.dumps({"exponent_from": args.fit_from, "time_per_step_exponent": exponent(rows, args.fit_from)}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

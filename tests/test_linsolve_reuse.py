@@ -1,0 +1,91 @@
+"""Solving a changing matrix by GMRES on an earlier factorization (``[solver] reuse``)."""
+
+import doctest
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import multilayer.krylov
+import multilayer.linsolve
+from multilayer.linsolve import Reuse, ReusingSolver, SolverStats
+from runs import run_cli
+
+
+@pytest.mark.parametrize("module", [multilayer.krylov, multilayer.linsolve])
+def test_doctests(module):
+    assert doctest.testmod(module).failed == 0
+
+
+def drifting_matrices(n=400, steps=6, drift=1e-3, seed=0):
+    """A nonsymmetric sparse matrix that changes by ``drift`` (relative) every step."""
+    rng = np.random.default_rng(seed)
+    base = sp.random(n, n, density=0.01, random_state=seed) + sp.diags(4.0 + rng.random(n))
+    change = sp.random(n, n, density=0.01, random_state=seed + 1)
+    return [(base + k * drift * change).tocsr() for k in range(steps)]
+
+
+def test_krylov_answer_is_the_direct_answer_to_the_tolerance():
+    stats = SolverStats()
+    solver = ReusingSolver(stats, "superlu", Reuse("krylov", 8, 1e-12))
+    b = np.random.default_rng(2).standard_normal(400)
+    for A in drifting_matrices():
+        x = solver.solve(A, b)
+        direct = spla.spsolve(A.tocsc(), b)
+        assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
+        assert np.linalg.norm(x - direct) <= 1e-10 * np.linalg.norm(direct)
+    assert stats.factorizations == 1 and stats.krylov_solves == 5
+    assert 5 <= stats.krylov_iterations <= 5 * 8
+
+
+def test_refactorizes_past_the_bound_and_none_factorizes_every_matrix():
+    far = drifting_matrices(drift=0.5)
+    stats = SolverStats()
+    solver = ReusingSolver(stats, "superlu", Reuse("krylov", 2, 1e-12))
+    b = np.ones(400)
+    for A in far:
+        x = solver.solve(A, b)
+        assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
+    assert stats.factorizations > 1  # GMRES could not reach 1e-12 in 2 iterations on a matrix that far
+    none = SolverStats()
+    solver = ReusingSolver(none, "superlu", Reuse("none"))
+    for A in far:
+        solver.solve(A, b)
+        solver.solve(A, 2 * b)  # the same matrix again: its own factors
+    assert none.factorizations == len(far) and none.krylov_solves == 0 and none.solves == 2 * len(far)
+
+
+def test_reuse_is_validated():
+    with pytest.raises(ValueError, match="reuse mode"):
+        Reuse("sometimes")
+    with pytest.raises(ValueError, match="max_iterations"):
+        Reuse("krylov", 0)
+
+
+@pytest.mark.parametrize("coupler", ['{model="kinematic-splitting"}', '{model="monolithic",scheme="bdf2"}'])
+def test_coupled_run_with_krylov_matches_the_direct_run(tmp_path, coupler):
+    """Every series column of the default (Krylov) run is the refactorized run's to ~the solver tolerance."""
+    sets = ("mesh.nz=24", "mesh.nr=4", "time.end=0.004", f"coupler={coupler}")
+    _, direct, rows_d = run_cli("pulse-koiter-thick", tmp_path / "direct", *sets, "solver.reuse=none")
+    _, krylov, rows_k = run_cli("pulse-koiter-thick", tmp_path / "krylov", *sets)
+    assert direct["status"] == krylov["status"] == "ok"
+    system = "fluid" if "splitting" in coupler else "monolithic"
+    assert krylov["factorizations"][system] < direct["factorizations"][system] == 40
+    assert krylov["krylov"][system]["solves"] > 0
+    for key in ("eta_z1", "eta_z3", "q_in", "kinetic.fluid", "energy.total"):
+        d = np.array([float(r[key]) for r in rows_d])
+        k = np.array([float(r[key]) for r in rows_k])
+        assert np.max(np.abs(k - d)) <= 1e-9 * np.max(np.abs(d)), key
+    assert krylov["energy"]["max_relative_residual"] <= 1e-11
+
+
+def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
+    stats = SolverStats()
+    solver = ReusingSolver(stats, "superlu", Reuse())
+    first, second = drifting_matrices(steps=2)
+    solver.solve(first, np.ones(400))
+    for k in range(5):  # sub-iterations: one matrix, new right-hand sides
+        x = solver.solve(second, np.full(400, k + 1.0), key="step 2")
+        assert np.linalg.norm(second @ x - (k + 1.0)) <= 1e-12 * np.sqrt(400) * (k + 1.0)
+    assert stats.krylov_solves == 1 and stats.factorizations == 2
