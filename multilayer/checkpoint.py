@@ -23,7 +23,7 @@ from multilayer import __version__
 from multilayer.case import Case
 from multilayer.casefile import validate_data
 from multilayer.problems import CaseError
-from multilayer.registry import Registry
+from multilayer.registry import Registry, plugin_versions
 
 FILE = "checkpoint.pkl"
 FORMAT = 1
@@ -42,17 +42,6 @@ class Checkpoint:
     checkpoint_every: int
 
 
-def _plugins(case: Case, registry: Registry) -> dict[str, str]:
-    specs = [("coupler", case.coupler), *(("layer", s) for s in case.layers)]
-    if case.fluid is not None:
-        specs.append(("fluid", case.fluid))
-    out = {}
-    for kind, spec in specs:
-        reg = registry.find(kind, spec.model)
-        out[spec.path] = f"{spec.model} {reg.package} {reg.version}" if reg is not None else spec.model
-    return out
-
-
 def _without_end(resolved: Mapping[str, Any]) -> dict[str, Any]:
     return {**resolved, "time": {k: v for k, v in resolved["time"].items() if k != "end"}}
 
@@ -66,7 +55,7 @@ def save(folder: Path, case: Case, registry: Registry, state: Any, tally: Any,
         "resolved": dict(case.resolved),
         "base_dir": case.base_dir,
         "digest": case.digest,
-        "plugins": _plugins(case, registry),
+        "plugins": plugin_versions(case, registry),
         "state": state,
         "tally": attrs.evolve(tally, wall_time_s=tally.wall_time_s + wall_time_s),
         "snapshots": dict(snapshots),
@@ -106,7 +95,7 @@ def load(folder: Path, registry: Registry, until: float | None = None) -> Checkp
     if _without_end(case.resolved) != _without_end(resolved) or (until is None and case.digest != data["digest"]):
         raise CheckpointError("the case resolves differently now than when the checkpoint was written "
                               "(plugin defaults changed?): refusing to resume")
-    plugins = _plugins(case, registry)
+    plugins = plugin_versions(case, registry)
     if plugins != data["plugins"]:
         changed = [f"{k}: {data['plugins'].get(k)} → {v}" for k, v in plugins.items() if data["plugins"].get(k) != v]
         raise CheckpointError("the plugins differ from the checkpoint's, refusing to resume: " + "; ".join(changed))

@@ -225,3 +225,16 @@ class Registry:
 
 def _plugin_name(plugin: object) -> str:
     return plugin.__name__ if isinstance(plugin, ModuleType) else repr(plugin)
+
+
+def plugin_versions(case, registry: Registry) -> dict[str, dict[str, str]]:
+    """Which package and version provides every model of ``case``, by its key path (``coupler``, ``layers[0]``...)."""
+    specs = [("coupler", case.coupler), *(("layer", s) for s in case.layers)]
+    if case.fluid is not None:
+        specs.append(("fluid", case.fluid))
+    out = {}
+    for kind, spec in specs:
+        reg = registry.find(kind, spec.model)
+        if reg is not None:
+            out[spec.path] = {"name": spec.model, "package": reg.package, "version": reg.version}
+    return out

@@ -34,7 +34,7 @@ import numpy as np
 from multilayer import __version__
 from multilayer.case import Case
 from multilayer.interfaces import SchemeFailure
-from multilayer.registry import Registry
+from multilayer.registry import Registry, plugin_versions
 from multilayer import checkpoint, ledger
 from multilayer.results import ResultsFolder
 from multilayer.threads import blas_threads
@@ -269,7 +269,7 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
         "multilayer_version": __version__,
         "case": dict(case.resolved),
         "case_hash": case.digest,
-        "plugins": _plugin_versions(case, registry),
+        "plugins": plugin_versions(case, registry),
         "dofs": setup.dof_counts() if setup else {},
         "steps": tally.steps,
         "t": tally.t,
@@ -321,18 +321,6 @@ class Writers:
         if self.eta is not None:
             eta = self.setup.eta(state, 0)[self._vertices]
             self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
-
-
-def _plugin_versions(case: Case, registry: Registry) -> dict[str, dict[str, str]]:
-    specs = [("coupler", case.coupler), *(("layer", s) for s in case.layers)]
-    if case.fluid is not None:
-        specs.append(("fluid", case.fluid))
-    out = {}
-    for kind, spec in specs:
-        reg = registry.find(kind, spec.model)
-        if reg is not None:
-            out[spec.path] = {"name": spec.model, "package": reg.package, "version": reg.version}
-    return out
 
 
 def _iterations(per_step: list[float]) -> dict[str, dict[str, float]]:
