@@ -71,6 +71,15 @@ class TimeScheme:
         return len(self.alpha)
 
     @property
+    def old_levels(self) -> int:
+        """Old levels a step needs: the rule's, and two for a second-order scheme's extrapolations.
+
+        >>> [s.old_levels for s in SCHEMES.values()]
+        [1, 2, 2]
+        """
+        return max(len(self.alpha) - 1, self.order)
+
+    @property
     def theta(self) -> float:
         """Where the operator is evaluated, as a fraction of the step: t = tⁿ + θΔt.
 
@@ -117,9 +126,15 @@ class TimeScheme:
         return sum((b - b0 * a / a0) * d for a, b, d in zip(self.alpha[1:], self.beta[1:], old_d))
 
     def extrapolate(self, old: Sequence[np.ndarray]) -> np.ndarray:
-        """x at tⁿ + θΔt from the old levels, to the scheme's order (xⁿ for first order)."""
-        if self.order == 1 or len(old) < 2:
+        """x at tⁿ + θΔt from the old levels, to the scheme's order (xⁿ for first order).
+
+        A second-order scheme needs :attr:`old_levels` = 2 levels here: with
+        one it would silently be first order, so that is an error.
+        """
+        if self.order == 1:
             return old[0]
+        if len(old) < 2:
+            raise ValueError(f"{self.name} extrapolates from two old levels, got {len(old)}")
         return old[0] + self.theta * (old[0] - old[1])
 
     def geometry(self, etas: Sequence[np.ndarray]) -> np.ndarray:

@@ -75,7 +75,7 @@ class DirichletNeumann(Coupler):
             accelerate.recall(state.extra.get("acceleration"))
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
-            history = state.history(S.levels - 1)
+            history = state.history(S.old_levels)
             etas = [x.eta for x in history]
             x = S.extrapolate([x.v for x in history])  # the wall velocity the fluid sees first
             domain = Domain(S.geometry([S.displacement(x, etas, dt), *etas]), x)
@@ -105,7 +105,7 @@ class DirichletNeumann(Coupler):
             eta_new = P.T @ w.wall.d
             terms = fluid.identity(prescribed, solution, etas[0], eta_new)
             extra = {"acceleration": accelerate.memory()} if accelerate is not None else {}
-            state = state.then(S.levels - 1, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
+            state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=P.T @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             work = {k: v for k, v in {**w.work, **work_f}.items() if k not in ("work.fluid", "work.wall")}

@@ -57,7 +57,7 @@ class FluidOnly(Coupler):
         still = Domain.still(fluid.line.ndofs)
         for n, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
-            history = state.history(S.levels - 1)
+            history = state.history(S.old_levels)
             if moving:
                 etas = [self._eta(setup, t1), *[x.eta for x in history]]
                 domain = Domain(S.geometry(etas), S.difference(etas) / dt)
@@ -65,7 +65,7 @@ class FluidOnly(Coupler):
                 etas, domain = [still.eta, still.eta], still
             sol, f = fluid.step([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"],
                                 eta_old=etas[1], eta_new=etas[0])
-            state = state.then(S.levels - 1, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
+            state = state.then(S.old_levels, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
             stored, work, dissipation = fluid_groups(f)
             dissipation["dissipation.numerical.fluid"] = f["dissipation.numerical.fluid"]
             yield state, StepReport(stored, work, dissipation,

@@ -103,12 +103,12 @@ class KinematicSplitting(Coupler):
             v_mean_a1 = P.T @ a.mean
             interface = Interface(robin, robin @ v_mean_a1 - tau)
             domain = Domain(S.geometry([eta_new, eta_old]), v_mean_a1)
-            sol, f = fluid.step([state.fluid], domain, S, dt, loads["inlet"], loads["outlet"], interface,
+            sol, f = fluid.step([x.fluid for x in state.history(S.old_levels)], domain, S, dt, loads["inlet"], loads["outlet"], interface,
                                 eta_old, eta_new)
             v_new = fluid.wall_velocity(sol.state)
             v_bar = S.average([v_new, state.v])  # ū on Γ, the thin layer's test-level velocity
             traction = robin @ v_bar - interface.rhs  # the fluid's force on the thin layer over the step
-            new = state.then(S.levels - 1, n=n + 1, t=t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
+            new = state.then(S.old_levels, n=n + 1, t=t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
                              extra={"traction": traction})
             stored_f, work_f, diss_f = fluid_groups(f)
             stored = dict(a.stored)

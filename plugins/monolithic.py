@@ -73,7 +73,7 @@ class Monolithic(Coupler):
         layout = None
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
-            history = state.history(S.levels - 1)
+            history = state.history(S.old_levels)
             etas = [x.eta for x in history]
             # the explicit domain: the wall velocity extrapolated to where the operator is evaluated
             v_pred = S.extrapolate([x.v for x in history])
@@ -97,7 +97,7 @@ class Monolithic(Coupler):
             w = structure.finish(history, x[glob], forces)
             eta_new = P.T @ w.wall.d
             terms = fluid.identity(system, solution, etas[0], eta_new)
-            state = state.then(S.levels - 1, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
+            state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=fluid.wall_velocity(solution.state), eta=eta_new)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             dissipation = {**w.dissipation, **dissipation_f,

@@ -44,7 +44,7 @@ class StructureOnly(Coupler):
             forces = {"external": external_force(setup, loads["external"]),
                       "interface": loads["interface"] * unit_lumen}
             a = step.step(state, forces)
-            state = state.then(S.levels - 1, n=n + 1, t=t1, wall=a.wall)
+            state = state.then(S.old_levels, n=n + 1, t=t1, wall=a.wall)
             yield state, StepReport(a.stored, a.work, a.dissipation)
 
 

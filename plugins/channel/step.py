@@ -232,7 +232,7 @@ class FluidStep:
         self._check(domain, interface, history)
         t0 = time.perf_counter()
         ch = self.channel
-        hist = tuple(levels(history[0], history[1:], scheme.levels - 1))
+        hist = tuple(levels(history[0], history[1:], scheme.old_levels))
         fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, domain.eta, domain.velocity)
         mass_coefficient = scheme.inertia * self.density / dt
         key = (mass_coefficient,)
