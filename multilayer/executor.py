@@ -29,6 +29,7 @@ import importlib.util
 import json
 import logging
 import multiprocessing
+import os
 import sys
 import uuid
 from collections.abc import Callable, Sequence
@@ -44,6 +45,13 @@ from multilayer.registry import Registry, RegistryError
 #: times Dask runs a job again after it raised (a dead worker is rescheduled by the scheduler itself,
 #: up to its ``distributed.scheduler.allowed-failures``)
 RETRIES = 2
+
+
+#: Dask configuration of the embedded cluster's workers.  Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in a
+#: worker's environment; glibc then gives up its dynamic mmap threshold and every large temporary array is a
+#: fresh mmap: a run took 1.8x as long (measured, docs/sweeps.md).  None unsets it (the worker threads stay 1
+#: BLAS thread each, Dask's default).
+WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
 class ExecutorError(Exception):
@@ -250,18 +258,22 @@ def _on_dask(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], pro
     if not dask_installed():
         raise ExecutorError("running on Dask needs dask.distributed: pip install 'multilayer[dask]'"
                             + ("" if scheduler else " (or use --jobs 1)"))
+    import dask
     import distributed
 
     cluster = None
+    environ = dict(os.environ)  # a local nanny writes its workers' variables into this process's environment
     try:
         if scheduler is None:
-            cluster = distributed.LocalCluster(n_workers=min(workers, len(jobs)), threads_per_worker=1,
-                                               processes=True, dashboard_address=None,
-                                               silence_logs=logging.ERROR)
+            with dask.config.set(WORKER_CONFIG):
+                cluster = distributed.LocalCluster(n_workers=min(workers, len(jobs)), threads_per_worker=1,
+                                                   processes=True, dashboard_address=None,
+                                                   silence_logs=logging.ERROR)
         client = distributed.Client(cluster if cluster is not None else scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
         if cluster is not None:
             cluster.close()
+            _restore_environment(environ)
         where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
         raise ExecutorError(f"cannot reach {where}: {exc}") from None
     try:
@@ -278,6 +290,14 @@ def _on_dask(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], pro
         client.close()
         if cluster is not None:
             cluster.close()
+            _restore_environment(environ)
+
+
+def _restore_environment(saved: dict[str, str]) -> None:
+    """Put this process's environment back as it was (Dask's nanny sets OMP_NUM_THREADS=1 and more in it)."""
+    for key in set(os.environ) - set(saved):
+        del os.environ[key]
+    os.environ.update(saved)
 
 
 def print_err(line: str) -> None:

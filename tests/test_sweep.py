@@ -262,3 +262,33 @@ def test_a_sweep_on_two_local_dask_workers_survives_a_worker_killed_mid_run(tmp_
     assert main(argv) == 0  # re-submitted: nothing new runs
     assert "4 runs, 4 already done, nothing to run" in capsys.readouterr().err
     assert stamps == {f: (out / f / "summary.json").stat().st_mtime_ns for f in stamps}
+
+
+# -- the executor without Dask ----------------------------------------------------------
+
+
+def test_without_dask_several_jobs_run_in_a_process_pool_and_a_scheduler_is_refused(tmp_path, monkeypatch):
+    monkeypatch.setattr(executor, "dask_installed", lambda: False)
+    assert executor.how(2) == "processes" and executor.how(1) == "serial"
+    jobs = [executor.Job(f"t{t}", MEMBRANE, (f"layers[0].tension={t}",), tmp_path / f"t{t}") for t in (2e4, 8e4)]
+    lines = []
+    status = executor.execute(jobs, 2, Registry.load(), log=lines.append)
+    assert status == {"t20000.0": ("ok", ""), "t80000.0": ("ok", "")}
+    assert len(lines) == 2 and lines[-1].endswith("running 0, queued 0, failed 0")
+    for job in jobs:
+        assert json.loads((job.folder / "summary.json").read_text())["status"] == "ok"
+    with pytest.raises(executor.ExecutorError, match=r"pip install 'multilayer\[dask\]'"):
+        executor.execute(jobs, 1, Registry.load(), scheduler="tcp://127.0.0.1:1")
+    assert main(["sweep", str(MEMBRANE), "--out", str(tmp_path / "s"), "--vary", "time.dt=2e-5,1e-5",
+                 "--scheduler", "tcp://127.0.0.1:1"]) == 2
+
+
+@dask
+def test_a_local_dask_cluster_runs_the_jobs_and_leaves_this_process_environment_as_it_was(tmp_path):
+    before = dict(os.environ)
+    jobs = [executor.Job(f"t{t}", MEMBRANE, (f"layers[0].tension={t}",), tmp_path / f"t{t}") for t in (2e4, 8e4)]
+    lines = []
+    assert executor.execute(jobs, 2, Registry.load(), log=lines.append) == {"t20000.0": ("ok", ""),
+                                                                            "t80000.0": ("ok", "")}
+    assert dict(os.environ) == before  # Dask's nanny sets OMP_NUM_THREADS=1 and more in it while it runs
+    assert len(lines) == 2
