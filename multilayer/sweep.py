@@ -110,6 +110,22 @@ def sweep_axes(table: SweepTable | None, varies: Sequence[str]) -> list[list[Poi
     return axes
 
 
+def key_problems(case_file: Path, axes: Sequence[Sequence[Point]], overrides: Sequence[str],
+                 registry: Registry) -> list[Problem]:
+    """What is wrong with each axis alone: its first point applied to the case (after ``--set``).
+
+    A key the case does not have (``time.dtt``, ``layers[3].young``) is
+    reported once, with its key path, before every run that carries it.
+    """
+    problems: list[Problem] = []
+    for axis in axes:
+        try:
+            load_case(case_file, (*overrides, *(s.override for s in axis[0])), registry)
+        except CaseError as exc:
+            problems += [p for p in exc.problems if p not in problems]
+    return problems
+
+
 def plan(case_file: Path, axes: Sequence[Sequence[Point]], overrides: Sequence[str], registry: Registry,
          ) -> tuple[list[SweepRun], dict[str, list[Problem]]]:
     """Every combination of the axes as a validated case: (the runs, the problems by run label).
@@ -293,6 +309,9 @@ def main(case_file: Path, out: Path, varies: Sequence[str], jobs: int | None, ov
         axes = sweep_axes(read_table(case_file), varies)
     except CaseError as exc:
         return _invalid(f"{case_file}: invalid sweep", exc.problems)
+    problems = key_problems(case_file, axes, overrides, registry)
+    if problems:
+        return _invalid(f"{case_file}: invalid sweep (each swept key applied alone to the case)", problems)
     runs, invalid = plan(case_file, axes, overrides, registry)
     if invalid:
         lines = [f"{label}: {p}" for label, found in invalid.items() for p in found]

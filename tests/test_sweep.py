@@ -146,6 +146,8 @@ def test_an_invalid_swept_value_exits_2_naming_the_run_and_the_key_and_nothing_r
     (["--jobs", "0"], "--jobs = 0: expected an integer >= 1"),
     (["--vary", "time.dt"], "--vary = 'time.dt': expected KEY=A,B"),
     (["--vary", "time.dt=1e-4,5e-5", "--vary", "time.dt=1,2"], "time.dt is already varied"),
+    (["--vary", "time.dtt=1e-4,5e-5"], "time.dtt = 0.0001: unknown key; did you mean 'dt'?"),
+    (["--vary", "layers[3].young=1,2"], "layers[3]: no such entry; 'layers' has 1"),
 ])
 def test_bad_command_lines_exit_2(tmp_path, capsys, extra, message):
     assert main(["sweep", str(PULSE), "--out", str(tmp_path / "o"), *extra]) == 2
