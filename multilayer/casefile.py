@@ -48,7 +48,8 @@ from multilayer.registry import Registry
 __all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems",
            "coupler_objections", "key_steps", "parse_value"]
 
-SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver")
+SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver",
+            "sweep")
 
 GEOMETRY = (
     Param("length", "L", "cm", gt=0.0, doc="channel length"),
@@ -374,6 +375,10 @@ class _Validator:
         parts["threads"] = self.part("solver", mark, lambda: solver["threads"])
         case = Case(**parts)
         self.add(self.objections(case))
+        if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
+            from multilayer.grid import sweep_table
+
+            self.add(sweep_table(data["sweep"])[1])
         if self.problems:
             raise CaseError(self.problems)
 

@@ -10,6 +10,7 @@ Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
     multilayer compare cases/membrane-mode.toml --vary layers[0].tension=2e4,8e4 --out results/tension
     multilayer study cases/pulse-koiter.toml --vary time.dt=1e-4,5e-5,2.5e-5 --out results/dt-study
     multilayer stability cases/pulse-koiter.toml --couplers kinematic-splitting,monolithic --out results/stability
+    multilayer sweep cases/pulse-koiter.toml --vary time.dt=1e-4,5e-5 --vary layers[0].young=5e5,1e6 --out results/sweep
 """
 
 from __future__ import annotations
@@ -71,6 +72,16 @@ def run_options(p: argparse.ArgumentParser, checkpoints: bool = True) -> None:
     p.add_argument("--no-plots", action="store_true", help="do not draw the run's figures at the end")
 
 
+def executor_options(p: argparse.ArgumentParser, jobs: int | None = 1, jobs_help: str = "") -> None:
+    """``--jobs`` and ``--scheduler`` of the commands that run many cases (:mod:`multilayer.executor`)."""
+    p.add_argument("--jobs", type=int, default=jobs, metavar="N",
+                   help=jobs_help or "runs at once: 1 runs them here one after the other, more on a local Dask "
+                                     "cluster of N worker processes (a process pool without Dask)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on an existing Dask cluster, e.g. tcp://host:8786 (needs the extra 'dask'; "
+                        "case files and --out on a file system the workers share)")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="multilayer", description="Fluid–multi-layered-structure interaction from TOML case files."
@@ -119,6 +130,7 @@ def _parser() -> argparse.ArgumentParser:
                          help="one variant per value, each read like a --set value (inline tables too)")
     compare.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                          help="override a value of every variant")
+    executor_options(compare)
     common(compare, case=False)
 
     # -- study: multilayer.study ----------------------------------------------
@@ -138,7 +150,7 @@ def _parser() -> argparse.ArgumentParser:
                        help="the η probes the errors are measured at (default: every η probe)")
     study.add_argument("--reuse", action="store_true",
                        help="keep the runs already in OUT that ended ok with the same case; run only the others")
-    study.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
+    executor_options(study)
 
     # -- stability: multilayer.stability ----------------------------------------
     stability = commands.add_parser("stability", help="stability map: couplers x wall-to-fluid mass ratio "
@@ -155,7 +167,18 @@ def _parser() -> argparse.ArgumentParser:
                            help="the thin layer whose density sets the ratio (default: 0)")
     stability.add_argument("--vary", dest="varies", action="append", default=[], metavar="KEY=A,B[,C...]",
                            help="values of a key, e.g. time.dt=1e-4,1e-5 (repeatable: one map per combination)")
-    stability.add_argument("--jobs", type=int, default=1, metavar="N", help="runs at once, in separate processes")
+    executor_options(stability)
+
+    # -- sweep: multilayer.sweep ----------------------------------------------------
+    sweep = commands.add_parser("sweep", help="run a grid over any case keys ([sweep] table and --vary) on Dask, "
+                                              "each run in OUT/runs/<digest>/")
+    common(sweep)
+    sweep.add_argument("--out", type=Path, required=True,
+                       help="sweep folder: runs/<digest>/, plan.json, sweep.csv, sweep.md, sweep_<key>.png")
+    sweep.add_argument("--vary", dest="varies", action="append", default=[], metavar="KEY=A,B[,C...]",
+                       help="values of a key, read like --set values (repeatable; replaces the key in [sweep] grid)")
+    executor_options(sweep, jobs=None, jobs_help="local Dask workers (default: one per core); 1 runs here, "
+                                                 "one run after the other")
     return parser
 
 
@@ -175,20 +198,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "compare":
             from multilayer import compare
 
-            return compare.main(args.cases, args.out, args.vary, args.overrides, registry)
+            return compare.main(args.cases, args.out, args.vary, args.overrides, registry, args.jobs, args.plugins,
+                                args.scheduler)
         if args.command == "study":
             from multilayer import study
 
             command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
             return study.main(args.case, args.out, args.couplers, args.varies, args.reference, args.jobs,
                               args.overrides, registry, args.plugins, command, args.reference_sets,
-                              args.probes.split(",") if args.probes else None, args.reuse)
+                              args.probes.split(",") if args.probes else None, args.reuse, args.scheduler)
         if args.command == "stability":
             from multilayer import stability
 
             command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
             return stability.main(args.case, args.out, args.couplers, args.ratios, args.varies, args.layer,
-                                  args.jobs, args.overrides, registry, args.plugins, command)
+                                  args.jobs, args.overrides, registry, args.plugins, command, args.scheduler)
+        if args.command == "sweep":
+            from multilayer import sweep
+
+            command = shlex.join(["multilayer", *(sys.argv[1:] if argv is None else argv)])
+            return sweep.main(args.case, args.out, args.varies, args.jobs, args.overrides, registry, args.plugins,
+                              args.scheduler, command)
         from multilayer.casefile import load_case
 
         case = load_case(args.case, args.overrides, registry)
@@ -201,6 +231,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return INVALID
     if args.command == "validate":
         print(_describe(args.case, case))
+        _describe_sweep(args.case)
         return OK
     if args.checkpoint_every < 0:
         print(f"--checkpoint-every = {args.checkpoint_every}: expected a whole number of steps >= 0", file=sys.stderr)
@@ -284,6 +315,16 @@ def _describe(path: Path, case: object) -> str:
         f"  coupler  {case.coupler.model}",
         f"  digest   {case.digest[:16]}",
     ])
+
+
+def _describe_sweep(path: Path) -> None:
+    """For a case with a (valid) ``[sweep]`` table: how many runs it declares and that ``sweep`` runs them."""
+    from multilayer.sweep import read_table
+
+    table = read_table(path)
+    if table is not None:
+        print(f"  sweep    {table.size} runs over {', '.join(table.keys)}: 'multilayer sweep' runs them; "
+              f"'run' runs the case as written, without [sweep]")
 
 
 def _plugins(registry: Registry, name: str | None) -> int:

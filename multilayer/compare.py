@@ -18,27 +18,25 @@ from pathlib import Path
 from typing import Any
 
 from multilayer.cli import FAILED, INVALID, OK
+from multilayer.executor import ExecutorError, Job, execute
 from multilayer.measure import RunData, compare_runs, lumen_eta, read_run, without_nan
 from multilayer.problems import CaseError
 from multilayer.registry import Registry
-from multilayer.variants import Variant, invalid_message, load_variants, make_variants, run_variant
+from multilayer.variants import Variant, invalid_message, load_variants, make_variants
 
 
-def run_variants(loaded: Sequence[tuple[Variant, Any]], out: Path, registry: Registry,
+def run_variants(variants: Sequence[Variant], out: Path, registry: Registry, jobs: int = 1,
+                 plugins: Sequence[str] = (), scheduler: str | None = None,
                  log: Callable[[str], None] = print) -> list[RunData]:
-    """Run every variant into ``out/<label>/`` and read the folders back.
+    """Run every variant into ``out/<label>/`` with :func:`multilayer.executor.execute` and read the folders back.
 
     A run that raises (a bug, not a failed run) is logged with its traceback
-    and kept as a failed variant.
+    and kept as a failed variant.  ``jobs`` 1 runs them here, one after the
+    other; more (or a ``scheduler``) on Dask.
     """
-    runs = []
-    for i, (variant, case) in enumerate(loaded, start=1):
-        folder = out / variant.label
-        status, reason = run_variant(case, folder, registry)
-        run = read_run(variant.label, folder, status, reason)
-        log(f"[{i}/{len(loaded)}] {variant.label}: {status}" + (f" ({reason})" if reason else ""))
-        runs.append(run)
-    return runs
+    work = [Job(v.label, v.case_file, v.overrides, out / v.label) for v in variants]
+    status = execute(work, jobs, registry, plugins, log=log, scheduler=scheduler)
+    return [read_run(v.label, out / v.label, *status[v.label]) for v in variants]
 
 
 def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData], registry: Registry,
@@ -67,8 +65,12 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
 
 
 def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Sequence[str],
-         registry: Registry) -> int:
-    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary) is invalid."""
+         registry: Registry, jobs: int = 1, plugins: Sequence[str] = (), scheduler: str | None = None) -> int:
+    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary, --jobs) is invalid."""
+    if jobs < 1:
+        print(f"compare: invalid command line\n--jobs = {jobs}: expected an integer >= 1 (runs at once)",
+              file=sys.stderr)
+        return INVALID
     try:
         variants = make_variants(case_files, vary, overrides)
     except CaseError as exc:
@@ -82,7 +84,11 @@ def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Seq
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     variants = [v for v, _ in loaded]  # with the snapshot cadence they ran with
-    runs = run_variants(loaded, out, registry)
+    try:
+        runs = run_variants(variants, out, registry, jobs, plugins, scheduler)
+    except ExecutorError as exc:
+        print(f"compare: {exc}", file=sys.stderr)
+        return INVALID
     data = write_report(out, variants, runs, registry, vary)
     failed = [c["label"] for c in data["variants"] if c["status"] != "ok"]
     print(f"report: {out / 'report.md'}")

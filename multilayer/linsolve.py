@@ -48,6 +48,9 @@ class SolverStats:
     #: set by the runner after a checkpoint: the system's next solve factorizes afresh, as the first solve of a
     #: run resumed from that checkpoint must, so the two runs stay bit-identical
     refactorize: bool = False
+    #: the backend instances of this owner, by name: what a backend keeps between factorizations (PARDISO's
+    #: symbolic analysis) belongs to one run's solver, never to the process, so runs sharing a worker share nothing
+    backends: dict = attrs.field(factory=dict, repr=False, eq=False)
 
 
 class Factorized:
@@ -65,9 +68,11 @@ class Factorized:
         return x
 
 
-def _superlu(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
-    lu = spla.splu(sp.csc_matrix(A), permc_spec="COLAMD")
-    return lu.solve
+class _SuperLU:
+    """scipy's SuperLU (COLAMD ordering); keeps nothing between factorizations."""
+
+    def __call__(self, A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
+        return spla.splu(sp.csc_matrix(A), permc_spec="COLAMD").solve
 
 
 def _pypardiso():
@@ -134,10 +139,13 @@ class _Pardiso:
         handle._call_pardiso(A, np.zeros((A.shape[0], 1)))
 
 
-OPTIONAL = {"pardiso": ("pypardiso", _Pardiso())}  #: name → (module it needs, backend)
+Backend = Callable[[sp.spmatrix], Callable[[np.ndarray], np.ndarray]]
 
-BACKENDS: dict[str, Callable[[sp.spmatrix], Callable[[np.ndarray], np.ndarray]]] = {
-    "superlu": _superlu,
+OPTIONAL = {"pardiso": ("pypardiso", _Pardiso)}  #: name → (module it needs, backend class)
+
+#: name → backend class; :func:`factorize` makes one instance per :class:`SolverStats` (per solver of a run)
+BACKENDS: dict[str, Callable[[], Backend]] = {
+    "superlu": _SuperLU,
     **{name: backend for name, (module, backend) in OPTIONAL.items() if importlib.util.find_spec(module)},
 }
 
@@ -145,10 +153,16 @@ BACKENDS: dict[str, Callable[[sp.spmatrix], Callable[[np.ndarray], np.ndarray]]]
 def factorize(A: sp.spmatrix, stats: SolverStats, backend: str = "superlu") -> Factorized:
     """Factorize ``A`` with ``backend``, counting it on ``stats``.
 
+    The backend instance is ``stats``'s own (made on its first use), so
+    nothing a backend keeps is shared between the solvers of a run or
+    between runs in one process.
+
     >>> st = SolverStats()
     >>> f = factorize(sp.eye(3).tocsc() * 2.0, st)
     >>> f.solve(np.ones(3)), st.factorizations
     (array([0.5, 0.5, 0.5]), 1)
+    >>> st.backends["superlu"] is SolverStats().backends.get("superlu")
+    False
     """
     if backend not in BACKENDS:
         if backend in OPTIONAL:
@@ -156,7 +170,9 @@ def factorize(A: sp.spmatrix, stats: SolverStats, backend: str = "superlu") -> F
                            f"pip install 'multilayer[fast]'; available: {sorted(BACKENDS)}")
         raise KeyError(f"unknown linear solver {backend!r}; available: {sorted(BACKENDS)}")
     t0 = time.perf_counter()
-    solve = BACKENDS[backend](A)
+    if backend not in stats.backends:
+        stats.backends[backend] = BACKENDS[backend]()
+    solve = stats.backends[backend](A)
     stats.factorizations += 1
     stats.factorization_s += time.perf_counter() - t0
     return Factorized(solve, stats)

@@ -270,3 +270,12 @@ def _alive(pid: int) -> bool:
     except PermissionError:  # someone else's process: alive
         return True
     return True
+
+
+def holds_finished_run(folder: Path, digest: str) -> bool:
+    """True when ``folder`` holds a run of the case with ``digest`` that ended ok (its ``summary.json`` says so)."""
+    try:
+        summary = json.loads((Path(folder) / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return summary.get("status") == "ok" and summary.get("case_hash") == digest

@@ -37,11 +37,12 @@ import numpy as np
 from multilayer.case import Case
 from multilayer.casefile import key_steps, load_case
 from multilayer.cli import INVALID, OK
+from multilayer.executor import ExecutorError
+from multilayer.grid import Setting, vary_axis
 from multilayer.measure import RunData, without_nan
 from multilayer.problems import MISSING, CaseError, Problem
 from multilayer.registry import Registry
-from multilayer.study import (Planned, Setting, grid_options, invalid_runs, plan_grid, run_variants,
-                              vary_axis)
+from multilayer.study import Planned, grid_options, invalid_runs, plan_grid, run_variants
 
 #: a run is stable when its energy growth stays at or below this (relative round-off of the ledger)
 GROWTH_TOLERANCE = 1e-9
@@ -578,7 +579,7 @@ def _invalid(head: str, problems: Sequence[Problem]) -> int:
 
 def main(case_file: Path, out: Path, couplers: str | None, ratios: str | None, varies: Sequence[str], layer: int,
          jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer stability") -> int:
+         command: str = "multilayer stability", scheduler: str | None = None) -> int:
     """``multilayer stability``: 0 the map is made (failed runs are results), 2 invalid input.
 
     Parameters
@@ -631,7 +632,11 @@ def main(case_file: Path, out: Path, couplers: str | None, ratios: str | None, v
         return INVALID
     out.mkdir(parents=True, exist_ok=True)
     folders = {p.label: out / p.folder for p in planned}
-    runs = run_variants(variants, folders, jobs, registry, plugins)
+    try:
+        runs = run_variants(variants, folders, jobs, registry, plugins, scheduler)
+    except ExecutorError as exc:
+        print(f"stability: {exc}", file=sys.stderr)
+        return INVALID
     data = {
         "command": command,
         "case_file": str(case_file),

@@ -5,8 +5,9 @@ Plan → execute → collect:
 * :func:`plan` turns ``--couplers`` and every ``--vary`` into a grid of runs,
   each a :class:`~multilayer.variants.Variant` (case file + overrides) with
   its results folder ``OUT/<coupler>/<key=value>/...``;
-* :func:`execute` runs them, in ``--jobs`` processes, each into an ordinary
-  results folder (:func:`multilayer.variants.run_variant`);
+* :func:`multilayer.executor.execute` runs them (here with ``--jobs 1``,
+  else on Dask), each into an ordinary results folder
+  (:func:`multilayer.variants.run_variant`);
 * :func:`collect` measures everything from those folders alone
   (:func:`multilayer.measure.read_run`): errors against a reference,
   observed orders, the Pareto front of wall time against error, the cost of
@@ -20,27 +21,27 @@ The measurements are pure functions of numbers and arrays
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
-import multiprocessing
 import re
 import sys
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import attrs
 import numpy as np
 
-from multilayer.casefile import key_steps, load_case, parse_value
+from multilayer import grid
+from multilayer.casefile import load_case, parse_value
+from multilayer.executor import ExecutorError, Job, execute, print_err
+from multilayer.grid import Setting, combinations, vary_axis
 from multilayer.cli import FAILED, INVALID, OK
 from multilayer.measure import RunData, dof_counts, finite_rows, read_run, without_nan
 from multilayer.problems import CaseError, Problem, did_you_mean
 from multilayer.registry import Registry
-from multilayer.variants import (Variant, invalid_message, load_variants, parse_vary, run_variant, sanitize,
-                                 split_values, unique)
+from multilayer.results import holds_finished_run
+from multilayer.variants import Variant, invalid_message, load_variants, sanitize, split_values, unique
 
 #: target peak errors of the cost table
 TARGETS = (0.05, 0.01)
@@ -146,51 +147,12 @@ def parse_couplers(text: str, names: Sequence[str]) -> list[CouplerChoice]:
 
 
 def parse_varies(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
-    """Every ``--vary KEY=A,B,...`` (read like compare's); CaseError listing every malformed one.
+    """Every ``--vary KEY=A,B,...`` (:func:`multilayer.grid.parse_varies`); the coupler has ``--couplers``.
 
     >>> parse_varies(["time.dt=1e-4,5e-5", "mesh.nz=12,24"])
     [('time.dt', ['1e-4', '5e-5']), ('mesh.nz', ['12', '24'])]
     """
-    out: list[tuple[str, list[str]]] = []
-    problems: list[Problem] = []
-    for text in texts:
-        try:
-            key, values = parse_vary(text)
-        except CaseError as exc:
-            problems += exc.problems
-            continue
-        if key_steps(key)[0] == "coupler":
-            problems.append(Problem("--vary", text, "the coupler is chosen with --couplers"))
-        elif key in (k for k, _ in out):
-            problems.append(Problem("--vary", text, f"{key} is already varied"))
-        else:
-            out.append((key, values))
-    if problems:
-        raise CaseError(problems)
-    return out
-
-
-@attrs.frozen
-class Setting:
-    """One value of one axis of the grid: ``key=value`` in labels and folders, and the override it applies.
-
-    For ``--vary`` the override is ``key=value`` itself; another command
-    may name a value by one quantity and realise it by another (the
-    stability map's ``ratio=0.01`` sets ``layers[0].density``).
-    """
-
-    key: str
-    value: str
-    override: str
-
-
-def vary_axis(key: str, values: Sequence[str]) -> list[Setting]:
-    """The settings of ``--vary KEY=A,B,...``: each value applied as ``KEY=value``.
-
-    >>> vary_axis("time.dt", ["1e-4", "5e-5"])[1]
-    Setting(key='time.dt', value='5e-5', override='time.dt=5e-5')
-    """
-    return [Setting(key, v, f"{key}={v}") for v in values]
+    return grid.parse_varies(texts, {"coupler": "the coupler is chosen with --couplers"})
 
 
 def plan(case_file: Path, couplers: Sequence[CouplerChoice], varies: Sequence[tuple[str, Sequence[str]]],
@@ -245,7 +207,7 @@ def plan_grid(case_file: Path, couplers: Sequence[CouplerChoice], axes: Sequence
     axes = [list(zip(axis, unique([sanitize(f"{s.key}={s.value}") for s in axis]))) for axis in axes]
     runs = []
     for choice, coupler_folder in zip(couplers, coupler_folders):
-        for combo in itertools.product(*axes):
+        for combo in combinations([[(pair,) for pair in axis] for axis in axes]):
             values = tuple((s.key, s.value) for s, _ in combo)
             label = "/".join([choice.label, *(f"{k}={v}" for k, v in values)])
             sets = (*overrides, *([choice.override] if choice.override else []), *(s.override for s, _ in combo))
@@ -257,105 +219,32 @@ def plan_grid(case_file: Path, couplers: Sequence[CouplerChoice], axes: Sequence
 # -- running -------------------------------------------------------------------
 
 
-@attrs.frozen
-class Job:
-    """What a worker needs to run one variant: everything picklable."""
-
-    label: str
-    case_file: Path
-    overrides: tuple[str, ...]
-    folder: Path
-
-
-_REGISTRIES: dict[tuple[str, ...], Registry] = {}
-
-
-def _run_job(job: Job, registry: Registry) -> tuple[str, str]:
-    try:
-        case = load_case(job.case_file, job.overrides, registry)
-    except CaseError as exc:  # validated before; only a plugin that changed in between gets here
-        return "failed", f"invalid case: {exc}"
-    return run_variant(case, job.folder, registry)
-
-
-def _run_in_worker(job: Job, plugins: tuple[str, ...]) -> tuple[str, str]:
-    """A worker process: its own registry (the ``--plugin`` modules imported again), built once.
-
-    A plugin that fails to load was reported by the parent process already.
-    """
-    if plugins not in _REGISTRIES:
-        from multilayer.cli import load_registry
-
-        _REGISTRIES[plugins] = load_registry(plugins, warn=False)
-    return _run_job(job, _REGISTRIES[plugins])
-
-
-def _wall_time(folder: Path) -> float | None:
-    try:
-        return json.loads((folder / "summary.json").read_text()).get("wall_time_s")
-    except (OSError, ValueError):
-        return None
-
-
-def execute(jobs: Sequence[Job], workers: int, registry: Registry, plugins: Sequence[str] = (),
-            log: Callable[[str], None] = print) -> dict[str, tuple[str, str]]:
-    """Run every job, ``workers`` at a time: (status, reason) by label.
-
-    With one worker the jobs run here, one after the other; with more, in
-    a pool of fresh (spawned) processes.  Each finished run is logged with
-    its wall time as ``summary.json`` has it.  A run that fails, or a
-    worker that dies, is a failed run; the others go on.
-    """
-    results: dict[str, tuple[str, str]] = {}
-
-    def finished(job: Job, status: str, reason: str) -> None:
-        results[job.label] = status, reason
-        wall = _wall_time(job.folder)
-        log(f"[{len(results)}/{len(jobs)}] {job.label}: {status}" + (f" ({reason})" if reason else "")
-            + (f", {wall:.3g} s" if wall is not None else ", no summary.json"))
-
-    if workers == 1:
-        for job in jobs:
-            finished(job, *_run_job(job, registry))
-        return results
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        futures = {pool.submit(_run_in_worker, job, tuple(plugins)): job for job in jobs}
-        for future in as_completed(futures):
-            try:
-                status, reason = future.result()
-            except Exception as exc:  # the worker died (out of memory, killed): that run failed
-                status, reason = "failed", f"{type(exc).__name__}: {exc}"
-            finished(futures[future], status, reason)
-    return results
-
-
 def finished_run(variant: Variant, folder: Path, registry: Registry) -> bool:
     """True when ``folder`` holds an ok run of exactly ``variant``'s case (same digest)."""
-    try:
-        summary = json.loads((folder / "summary.json").read_text())
-    except (OSError, ValueError):
-        return False
-    if summary.get("status") != "ok":
-        return False
-    return summary.get("case_hash") == load_case(variant.case_file, variant.overrides, registry).digest
+    return holds_finished_run(folder, load_case(variant.case_file, variant.overrides, registry).digest)
 
 
 def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
-                 plugins: Sequence[str] = (), reuse: bool = False) -> dict[str, RunData]:
+                 plugins: Sequence[str] = (), scheduler: str | None = None, reuse: bool = False) -> dict[str, RunData]:
     """Run every (validated) variant into ``folders[label]`` in this order, then read each folder back.
 
-    :func:`execute` with one line per finished run on stderr; the result is
+    :func:`multilayer.executor.execute` (here with one worker, else on
+    Dask) with one line per finished run on stderr; the result is
     :func:`multilayer.measure.read_run` of each folder, by label, in the
     order of ``variants``, with the status and reason the run returned.
     With ``reuse``, a folder that already holds an ok run of the same case
     (:func:`finished_run`) is read as it is, not run again.
+
+    Raises
+    ------
+    multilayer.executor.ExecutorError
+        The runs cannot be started as asked (Dask missing for ``scheduler``).
     """
     kept = [v for v in variants if reuse and finished_run(v, folders[v.label], registry)]
     for v in kept:
         print(f"[reused] {v.label}: ok, already in {folders[v.label]}", file=sys.stderr)
     work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants if v not in kept]
-    status = execute(work, workers, registry, plugins, log=lambda line: print(line, file=sys.stderr))
+    status = execute(work, workers, registry, plugins, log=print_err, scheduler=scheduler)
     status.update({v.label: ("ok", "") for v in kept})
     return {v.label: read_run(v.label, folders[v.label], *status[v.label]) for v in variants}
 
@@ -1093,7 +982,7 @@ def invalid_runs(command: str, variants: Sequence[Variant], registry: Registry) 
 def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
          jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
          command: str = "multilayer study", reference_sets: Sequence[str] = (),
-         probes: Sequence[str] | None = None, reuse: bool = False) -> int:
+         probes: Sequence[str] | None = None, reuse: bool = False, scheduler: str | None = None) -> int:
     """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
 
     ``reference_sets`` are overrides of the reference alone; with them and no
@@ -1124,7 +1013,11 @@ def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str]
     folders = {p.label: out / p.folder for p in planned} | ({REFERENCE: out / REFERENCE} if reference else {})
     # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
     order = variants[-1:] + variants[:-1] if reference is not None else variants
-    runs = run_variants(order, folders, jobs, registry, plugins, reuse)
+    try:
+        runs = run_variants(order, folders, jobs, registry, plugins, scheduler, reuse)
+    except ExecutorError as exc:
+        print(f"study: {exc}", file=sys.stderr)
+        return INVALID
     runs = {label: runs[label] for label in folders}
     if probes is not None:
         known = {p["name"] for r in runs.values() for p in r.probes if p["quantity"] == "eta"}
