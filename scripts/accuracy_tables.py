@@ -1,6 +1,6 @@
 """The tables of docs/accuracy.md, from a study's ``study.json`` (and, optionally, measured step costs).
 
-    python scripts/accuracy_tables.py STUDY/study.json --probes eta_z1,eta_z2,eta_z3 [--costs costs.jsonl]
+    python scripts/accuracy_tables.py STUDY/study.json --probes eta_z1,eta_z2,eta_z3 [--costs costs.jsonl]...
 
 Prints Markdown: the peak error of each run at each of the probes, the
 observed orders of the worst of them between successive Δt, and the cost
@@ -33,15 +33,18 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study", type=Path)
     ap.add_argument("--probes", required=True, help="comma list of η probe names")
-    ap.add_argument("--costs", type=Path, help="JSON lines of benchmarks/coupled_step.py")
+    ap.add_argument("--costs", type=Path, action="append", default=[],
+                    help="JSON lines of benchmarks/coupled_step.py (repeatable: the mean of the runs' medians)")
     args = ap.parse_args(argv)
     data = json.loads(args.study.read_text())
     probes = args.probes.split(",")
-    step_cost = {}
-    if args.costs:
-        for line in args.costs.read_text().splitlines():
+    medians: dict[str, list[float]] = {}
+    for path in args.costs:
+        for line in path.read_text().splitlines():
             row = json.loads(line)
-            step_cost[json.loads(row["coupler"]) if row["coupler"].startswith('"') else row["coupler"]] = row
+            key = json.loads(row["coupler"]) if row["coupler"].startswith('"') else row["coupler"]
+            medians.setdefault(key, []).append(row["median.step"])
+    step_cost = {k: {"median.step": sum(v) / len(v)} for k, v in medians.items()}
     runs = [r for r in data["runs"] if r["compared"] and r["status"] == "ok"]
     couplers = list(dict.fromkeys(label_of(r) for r in runs))
     spec = {c["label"]: c["override"] for c in data["couplers"]}
