@@ -4,7 +4,7 @@ The core assembles any wall from the contributions of its layers without
 knowing a concrete model.  A layer contributes
 
 * its mass, damping and stiffness matrices (:class:`LayerMatrices`): these are
-  its forms of SCHEME §3 A1 (ρ₁h ∫vψ, b₁, a₁ for a thin layer; ρ₂ ∫V·Ψ, a_S for
+  its forms of theory §6 A1 (ρ₁h ∫vψ, b₁, a₁ for a thin layer; ρ₂ ∫V·Ψ, a_S for
   a thick one) and, through them, its energy terms of §4 (½vᵀMv kinetic,
   ½dᵀKd elastic, Δt vᵀCv dissipated);
 * its essential boundary conditions (:meth:`Layer.essential_dofs`).
@@ -365,7 +365,7 @@ class Fluid(ABC):
 
 @attrs.frozen
 class StepReport:
-    """The energy terms of one step (SCHEME §4), by column name, as a coupler reports them.
+    """The energy terms of one step (theory §7), by column name, as a coupler reports them.
 
     ``stored`` is the energy at tⁿ⁺¹ as the scheme's identity measures it
     (kinetic and elastic, per part), ``work`` what the loads put in,

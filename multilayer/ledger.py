@@ -1,4 +1,4 @@
-"""The discrete energy ledger of SCHEME §4, closed step by step.
+"""The discrete energy ledger of theory §7, closed step by step.
 
 Each step hands in three groups of terms, by column name:
 

@@ -1,7 +1,7 @@
 """Pressure loads P(t): inlet, outlet, external and interface pressures.
 
 The scheme never samples a pressure at a point in time: it uses the time
-average Pⁿ = (1/Δt) ∫ P dt over [tⁿ, tⁿ⁺¹] (SCHEME §3).  Every load therefore
+average Pⁿ = (1/Δt) ∫ P dt over [tⁿ, tⁿ⁺¹] (theory §6).  Every load therefore
 knows its exact integral where a closed form exists (constant, cosine pulse,
 sine, piecewise-linear table) and a 5-point Gauss–Legendre rule otherwise
 (formula).
@@ -90,7 +90,7 @@ class ConstantPressure(PressureLoad):
 class CosinePulse(PressureLoad):
     """P = amplitude/2 · (1 − cos(2πt/duration)) for 0 ≤ t ≤ duration, 0 otherwise.
 
-    The inlet pulse of the reference scene (SCHEME §7): amplitude = P_max.
+    The inlet pulse of the reference scene (theory §9): amplitude = P_max.
 
     >>> p = CosinePulse(amplitude=2.0, duration=1.0)
     >>> float(p.value(0.5)), p.average(0.0, 1.0), p.average(1.0, 2.0)

@@ -199,7 +199,7 @@ def wave_speed(z: Sequence[float], times: Sequence[float | None]) -> float | Non
 
 
 def long_wave_speeds(case: Mapping[str, Any], registry: Registry) -> dict[str, float | None]:
-    """√(R·C0/ρ_f), and √(R·C0/(ρ_f + ρ₁h/R)) with the wall's inertia (SCHEME §7).
+    """√(R·C0/ρ_f), and √(R·C0/(ρ_f + ρ₁h/R)) with the wall's inertia (theory §9).
 
     C0 is the ``long_wave_stiffness(radius=R)`` of the first thin layer,
     built by its plugin's factory from the resolved case.  None without a

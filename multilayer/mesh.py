@@ -2,7 +2,7 @@
 
 All fields of a scene use the same ``nz`` cells along z, so the DOFs of a
 thin layer on an interface line coincide with the radial DOFs of the fluid
-and of the thick bands on that line (SCHEME §5): no interpolation, no mortar.
+and of the thick bands on that line (theory §3): no interpolation, no mortar.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ test-level velocity V̄ = Σβ_k V^{n+1−k}:
 (h_i the old levels of layer i's velocity, d̄_old the old displacements'
 share of d̄).  With constant Δt this matrix never changes: it is factorized
 when the step is built and only back-substitution runs per step.  For
-backward Euler it is M/Δt² + C/Δt + K of SCHEME §3 A1, scaled by Δt.
+backward Euler it is M/Δt² + C/Δt + K of theory §6 A1, scaled by Δt.
 
 Each layer's inertia uses that layer's own old velocity: in a partitioned
 coupled scheme the thin layer at the fluid interface gets vⁿ from the fluid

@@ -151,7 +151,7 @@ class TimeScheme:
     def load_window(self, t0: float, t1: float) -> tuple[float, float]:
         """The time window whose average load is F̄.
 
-        [tⁿ, tⁿ⁺¹] for backward Euler (SCHEME §3: the time average over the
+        [tⁿ, tⁿ⁺¹] for backward Euler (theory §6: the time average over the
         step) and Crank–Nicolson (centred on its midpoint); for BDF2 one step
         centred on tⁿ⁺¹, where its operator is evaluated.
         """

@@ -1,7 +1,7 @@
 """The wall as one structure problem: every layer of the stack on one set of DOFs.
 
 Reading the stack from the lumen outward, thin layers sit on interface
-lines and thick layers are radial bands (SCHEME §1).  Line 0 is r = R; each
+lines and thick layers are radial bands (theory §1).  Line 0 is r = R; each
 band ends on the next line.  When the stack has thick bands, the unknowns
 are the displacement d = (d_z, d_r) of one conforming vector-Lagrange field
 on all bands, and a thin layer's η IS d_r on its line (with d_z = 0 there);

@@ -1,4 +1,4 @@
-"""``kinematic-splitting``: the kinematically coupled scheme (SCHEME §3) and its β and Crank–Nicolson variants.
+"""``kinematic-splitting``: the kinematically coupled scheme (theory §6) and its β and Crank–Nicolson variants.
 
 Each step is a splitting of the coupled problem, no sub-iterations:
 

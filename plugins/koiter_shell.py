@@ -1,10 +1,10 @@
-"""``koiter-shell``: the (visco)elastic cylindrical Koiter shell of SCHEME §1.
+"""``koiter-shell``: the (visco)elastic cylindrical Koiter shell of theory §1.
 
     ρ₁h η_tt + C0 η − C1 η_zz + C2 η_zzzz + D0 η_t − D1 η_tzz + D2 η_tzzzz = f
 
 A case gives either the material (``young``, ``poisson``, optionally
 ``radius``, ``viscous_young``, ``viscous_poisson``), from which the
-coefficients follow by SCHEME §1, or the coefficients ``C0``, ``C1``, ``C2``
+coefficients follow by theory §1, or the coefficients ``C0``, ``C1``, ``C2``
 (and optionally ``D0``, ``D1``, ``D2``) directly — never a mix of the two.
 Without ``radius`` the shell takes the radius of the line it is placed on.
 """

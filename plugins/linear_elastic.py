@@ -1,4 +1,4 @@
-"""``linear-elastic``: a thick wall band of 2D linear elasticity (SCHEME §1).
+"""``linear-elastic``: a thick wall band of 2D linear elasticity (theory §1).
 
 ρ₂ d_tt = ∇·S,  S = μ_s(∇d + ∇dᵀ) + λ_s(∇·d)I, on a radial band of thickness H.
 Forms of A1: mass ρ₂ ∫ V·Ψ and a_S(d, Ψ) = ∫ 2μ_s D(d):D(Ψ) + λ_s (∇·d)(∇·Ψ).

@@ -1,6 +1,6 @@
 """``monolithic``: the fluid and every layer of the wall in one linear system per step.
 
-The conforming layout (SCHEME §5) makes this a sum: the thin layer's DOFs
+The conforming layout (theory §3) makes this a sum: the thin layer's DOFs
 are the fluid's u_r DOFs on Γ, so adding the wall's equations to the
 fluid's on those rows (test functions q = ψ e_r) cancels the interface
 traction exactly; no traction is ever computed.  Both are solved for the

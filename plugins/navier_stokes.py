@@ -1,4 +1,4 @@
-"""``navier-stokes``: incompressible Navier–Stokes in the channel (SCHEME §3, step A2).
+"""``navier-stokes``: incompressible Navier–Stokes in the channel (theory §6, step A2).
 
 ALE on the fixed reference channel, skew-symmetric advection with the
 domain velocity of the structure step, dynamic pressure at inlet and

@@ -1,6 +1,6 @@
 """``stokes``: the unsteady Stokes fluid — ``navier-stokes`` without the advection terms.
 
-Everything else of SCHEME §3 A2 stays, the moving-domain term ρ_f/2 ∫ (v/R) u·q
+Everything else of theory §6 A2 stays, the moving-domain term ρ_f/2 ∫ (v/R) u·q
 included: it belongs to the moving domain, not to advection.
 """
 

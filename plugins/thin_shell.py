@@ -1,12 +1,12 @@
 """Koiter-family thin layers: the forms shared by ``wave-membrane`` and ``koiter-shell``.
 
 A thin layer on the interface line r = R carries the radial displacement
-η(t, z) of SCHEME §1,
+η(t, z) of theory §1,
 
     ρ₁h η_tt + C0 η − C1 η_zz + C2 η_zzzz + D0 η_t − D1 η_tzz + D2 η_tzzzz = f,
 
 with ends pinned (η = 0) and, where C2 or D2 ≠ 0, simply supported
-(η_zz = 0).  Its forms of SCHEME §3 A1 are
+(η_zz = 0).  Its forms of theory §6 A1 are
 
     mass     ρ₁h ∫ η ψ
     a₁(η,ψ)  ∫ C0 ηψ + C1 η_z ψ_z + C2 η_zz ψ_zz
@@ -14,7 +14,7 @@ with ends pinned (η = 0) and, where C2 or D2 ≠ 0, simply supported
 
 On C0 Lagrange elements η_zz is not a function, so ∫ η_zz ψ_zz is replaced
 by a discrete bi-Laplacian (:func:`bilaplace`), which is symmetric positive
-semi-definite: ½ a₁(η, η) stays an exact energy for the ledger of SCHEME §4.
+semi-definite: ½ a₁(η, η) stays an exact energy for the ledger of theory §7.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ class LineOperators:
 def koiter_coefficients(
     thickness: float, young: float, poisson: float, radius: float
 ) -> tuple[float, float, float]:
-    """(C0, C1, C2) of a linearly elastic cylindrical shell (SCHEME §1).
+    """(C0, C1, C2) of a linearly elastic cylindrical shell (theory §1).
 
     C0 = hE/(R²(1−σ²))·(1 + h²/(12R²)),  C1 = h³Eσ/(6R²(1−σ²)),  C2 = h³E/(12(1−σ²)).
     With the viscoelastic constants (E_v, σ_v) in place of (E, σ) the same
@@ -176,7 +176,7 @@ class KoiterFamilyLayer(ThinLayer):
         viscous_young: float = 0.0,
         viscous_poisson: float | None = None,
     ) -> KoiterFamilyLayer:
-        """The (visco)elastic cylindrical shell of radius R (SCHEME §1).
+        """The (visco)elastic cylindrical shell of radius R (theory §1).
 
         young E (dyn/cm²), poisson σ in (−1, 0.5), radius R (cm), viscous_young
         E_v (dyn·s/cm²), viscous_poisson σ_v (defaults to σ).

@@ -1,6 +1,6 @@
 """``wave-membrane``: the 1D wave equation on the interface line, ρ₁h η_tt = C1 η_zz + f.
 
-The Koiter family with C0 = C2 = D0 = D1 = D2 = 0 (SCHEME §1; the seed
+The Koiter family with C0 = C2 = D0 = D1 = D2 = 0 (theory §1; the seed
 writes the tension C1 as c²).  Ends pinned: η(0) = η(L) = 0.
 """
 

@@ -17,7 +17,7 @@ s ≈ 0.18 and shows a notch near s ≈ 0.38, as an aortic trace does. The file
 holds one cycle of T_c = 0.8 s (75 beats/min) in physical time and mmHg:
 the case file scales the pressure (``scale``) and the time axis is written
 compressed by the factor given on the command line (default 40, so a cycle
-lasts 0.02 s), because the compliant channel of SCHEME §7 is 6 cm long and a
+lasts 0.02 s), because the compliant channel of theory §9 is 6 cm long and a
 full 0.8 s cycle at Δt = 1e-4 would take 8000 steps per beat.
 
     python scripts/aortic_waveform.py [compression]

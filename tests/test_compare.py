@@ -224,7 +224,7 @@ def test_wave_membrane_against_koiter_shell_by_whole_layer_tables(tmp_path):
         diff = shell["probes"][name]["max_abs_diff"]
         assert diff == pytest.approx(np.max(np.abs(a[name] - b[name])), rel=1e-14, abs=0.0)
     assert shell["probes"][etas[0]]["max_abs_diff"] > 0.0
-    # C0 of the shell (SCHEME §1), independently of the plugin; ρ_f = 1
+    # C0 of the shell (theory §1), independently of the plugin; ρ_f = 1
     h, E, s, R = 0.02, 7.5e5, 0.49, 0.5
     c0 = h * E / (R**2 * (1 - s**2)) * (1 + h**2 / (12 * R**2))
     assert shell["long_wave_speed"] == pytest.approx(math.sqrt(R * c0 / 1.0), rel=1e-12)

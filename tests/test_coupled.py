@@ -1,4 +1,4 @@
-"""The kinematically coupled scheme (SCHEME §3–§4, §7) on the bundled pulse cases.
+"""The kinematically coupled scheme (theory §6–§7, §7) on the bundled pulse cases.
 
 Measured numbers quoted in the comments come from these tests
 (``pytest -s tests/test_coupled.py``) and are collected in docs/scheme.md.

@@ -74,7 +74,7 @@ def test_advection_is_skew_and_the_rest_symmetric():
 
 
 def test_ale_fields_match_the_map():
-    """J, g_z, g_r of SCHEME §2 for η = c z (η_z = c), at the quadrature points."""
+    """J, g_z, g_r of theory §2 for η = c z (η_z = c), at the quadrature points."""
     ch = Channel.build(2.0, 0.5, nz=2, nr=2, order=2)
     c = 0.05
     f = ALEFields.at(ch, c * ch.line.z, np.ones(ch.line.ndofs))

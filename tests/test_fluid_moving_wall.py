@@ -1,4 +1,4 @@
-"""The fluid on a moving wall: mass balance and the A2 energy identity (SCHEME §4).
+"""The fluid on a moving wall: mass balance and the A2 energy identity (theory §7).
 
 Prescribed motion η = a sin(πz/L) sin(2πt/T₀).  The discrete continuity
 equation tested with π = 1 is exact (the quadrature integrates J ∇^η·u·π

@@ -1,4 +1,4 @@
-"""Steady Poiseuille flow in the rigid channel (SCHEME §6), by time-stepping to steady state.
+"""Steady Poiseuille flow in the rigid channel (theory §8), by time-stepping to steady state.
 
 u_z = ΔP (R² − r²)/(2μL), p linear.  Taylor–Hood holds it exactly; MINI
 converges at second order in L² (errors 4.83e-2, 1.21e-2, 3.03e-3, 7.61e-4

@@ -1,4 +1,4 @@
-"""Womersley flow in the rigid channel (SCHEME §6): first order in time, element order in space.
+"""Womersley flow in the rigid channel (theory §8): first order in time, element order in space.
 
 The channel is planar with a symmetry line, so the profile is
 u_z = Re{G/(iωρ) [1 − cosh(κ r)/cosh(κ R)] e^{iωt}}, κ = √(iω/ν), driven

@@ -1,4 +1,4 @@
-"""The A1 energy identity of SCHEME §4 closes to round-off on a thin+thick+thin+thick stack."""
+"""The A1 energy identity of theory §7 closes to round-off on a thin+thick+thin+thick stack."""
 
 import numpy as np
 import pytest

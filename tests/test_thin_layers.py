@@ -1,6 +1,6 @@
 """Thin layers (``wave-membrane``, ``koiter-shell``) against their dispersion relation.
 
-SCHEME §6: a thin layer alone with pinned, simply supported ends has the
+theory §8: a thin layer alone with pinned, simply supported ends has the
 modes sin(kz), k = nπ/L, with
 
     ρ₁h λ² + (D0 + D1k² + D2k⁴) λ + (C0 + C1k² + C2k⁴) = 0.
@@ -219,7 +219,7 @@ def test_time_domain_backward_euler():
 
 
 def scheme_coefficients(h, E, s, Rad):
-    """SCHEME §1, typed again from the text."""
+    """theory §1, typed again from the text."""
     return (
         h * E / (Rad**2 * (1 - s**2)) * (1 + h**2 / (12 * Rad**2)),
         h**3 * E * s / (6 * Rad**2 * (1 - s**2)),

@@ -1,7 +1,7 @@
 """The channel fluid: Navier–Stokes (or Stokes) in the compliant channel, a plugin like any other.
 
 Assembled on the fixed reference channel with the coefficient fields of the
-explicit ALE map (SCHEME §2–§3), for any time scheme of
+explicit ALE map (theory §2–§6), for any time scheme of
 :mod:`multilayer.timescheme`; the assembly machinery it uses
 (:mod:`multilayer.assembly`) is the core's.
 

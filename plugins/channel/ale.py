@@ -1,4 +1,4 @@
-"""The explicit ALE map of SCHEME §2 as coefficient fields on the reference mesh.
+"""The explicit ALE map of theory §2 as coefficient fields on the reference mesh.
 
 A_η(ẑ, r̂) = (ẑ, (R + η(ẑ)) r̂ / R) maps Ω̂ = (0, L) × (0, R) onto the fluid
 domain.  On Ω̂ the physical derivatives are

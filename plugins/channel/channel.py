@@ -1,10 +1,10 @@
 """The reference channel Ω̂ = (0, L) × (0, R): mesh, spaces and boundary DOF sets.
 
-The fluid is assembled on this fixed mesh for the whole run (SCHEME §2, the
+The fluid is assembled on this fixed mesh for the whole run (theory §2, the
 seed's choice); only coefficient fields change from step to step.  The
 velocity space is Taylor–Hood P2/P1 (``order=2``) or MINI P1b/P1
 (``order=1``), so that the wall's u_r DOFs coincide with the DOFs of the
-interface line's 1D Lagrange space of the same order (SCHEME §5): they are
+interface line's 1D Lagrange space of the same order (theory §3): they are
 mapped onto its canonical numbering by :func:`multilayer.spaces.line_prolongation`.
 """
 

@@ -1,4 +1,4 @@
-"""The terms of SCHEME §3 step A2 as scikit-fem forms on the reference channel.
+"""The terms of theory §6 step A2 as scikit-fem forms on the reference channel.
 
 Every form is written on Ω̂ with the ALE coefficient fields of
 :class:`multilayer_plugins.channel.ale.ALEFields` passed as ``w`` arguments (``J``,
@@ -14,7 +14,7 @@ Coefficients multiply one factor before the product (``dot(J u, q)``, not
 ``J dot(u, q)``): batched, the factors are per function, the product per pair.
 
 The functionals at the end are the integrands of the A2 energy identity
-(SCHEME §4); the ledger evaluates them with the quadrature of the assembly.
+(theory §7); the ledger evaluates them with the quadrature of the assembly.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The incompressible fluid of the channel: one class, advection on or off.
 
-``navier-stokes`` and ``stokes`` are the same model of SCHEME §3 A2; Stokes
+``navier-stokes`` and ``stokes`` are the same model of theory §6 A2; Stokes
 drops the two advection terms and keeps everything else, the moving-domain
 term included.  The model holds its physical parameters; :meth:`setup`
 attaches a discretization (a :class:`multilayer_plugins.channel.step.FluidStep`) on

@@ -14,7 +14,7 @@ The old levels go to the right-hand side, so the matrix is
 (α₀/β₀) ρ_f/Δt mass_J + the rest (a backward-Euler matrix of step Δt β₀/α₀).
 [R v̄ − r] is what a coupler puts on the wall's u_r rows (line numbering):
 the thin layer's inertia as a Robin term in the kinematically coupled scheme
-(SCHEME §3 A2), nothing in a monolithic solve, which adds the wall itself.
+(theory §6 A2), nothing in a monolithic solve, which adds the wall itself.
 
 Wall modes:
 
