@@ -80,10 +80,8 @@ class KinematicSplitting(Coupler):
         S, dt, fluid, wall = self.scheme, setup.dt, setup.fluid, setup.wall
         a1 = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver, fluid_line=LUMEN)
         P = wall.prolongations[LUMEN]
-        thin = lumen_layers(setup)
-        masses = {i: lumen_mass(setup, i) for i in thin}
-        M = lumen_mass(setup)
-        robin = (S.inertia / dt) * M  # the same object every step: its slots are looked up once
+        masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
+        robin = (S.inertia / dt) * lumen_mass(setup)  # the same object every step: its slots are looked up once
         for n, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
             tau = self.beta * self.traction(state)
@@ -92,53 +90,59 @@ class KinematicSplitting(Coupler):
             if self.beta:
                 forces["splitting"] = P @ tau
             a = a1.step(state, forces)
-            eta_old, eta_new = state.eta, P.T @ a.wall.d
-            v_star = a.v  # the thin layer's velocity after A1
-            before = sum(wall_energy(setup.stack, S, state, LUMEN).values())
-            a1_res = sum(a.stored.values()) - before - sum(a.work.values()) + sum(a.dissipation.values())
-            a1_scale = max(abs(sum(a.stored.values())), abs(before), 1e-300)
+            eta_new = P.T @ a.wall.d
             # A2: the fluid on the domain A1 left, the thin layer's inertia as the Robin term
-            # the thin layer's A2 inertia (α₀/β₀)M/Δt (v̄ − V̄_Γ): from A1's test-level velocity, so that its
-            # new level x^{n+1} = (x̄ − β₁xⁿ)/β₀ starts from vⁿ, like the fluid's trace (u^{n+1} = v^{n+1} on Γ)
+            # (α₀/β₀)M/Δt (v̄ − V̄_Γ), from A1's test-level velocity V̄_Γ: the thin layer's new level
+            # (v̄ − β₁vⁿ)/β₀ then starts from vⁿ like the fluid's trace, so u^{n+1} = v^{n+1} on Γ
             v_mean_a1 = P.T @ a.mean
             interface = Interface(robin, robin @ v_mean_a1 - tau)
-            domain = Domain(S.geometry([eta_new, eta_old]), v_mean_a1)
-            sol, f = fluid.step([x.fluid for x in state.history(S.old_levels)], domain, S, dt, loads["inlet"], loads["outlet"], interface,
-                                eta_old, eta_new)
+            domain = Domain(S.geometry([eta_new, state.eta]), v_mean_a1)
+            history = [x.fluid for x in state.history(S.old_levels)]
+            sol, f = fluid.step(history, domain, S, dt, loads["inlet"], loads["outlet"], interface,
+                                state.eta, eta_new)
             v_new = fluid.wall_velocity(sol.state)
             v_bar = S.average([v_new, state.v])  # ū on Γ, the thin layer's test-level velocity
             traction = robin @ v_bar - interface.rhs  # the fluid's force on the thin layer over the step
-            new = state.then(S.old_levels, n=n + 1, t=t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
-                             extra={"traction": traction})
-            stored_f, work_f, diss_f = fluid_groups(f)
-            stored = dict(a.stored)
-            numerical_thin = 0.0
-            splitting = 0.0
-            for i in thin:
-                kinetic = quadratic(masses[i])
-                stored[f"kinetic.layers[{i}]"] = S.stored(kinetic, [v_new, v_star])
-                numerical_thin += S.numerical(kinetic, [v_new, v_star])
-                # what testing the inertia with v̄ leaves beyond the scheme's identity (0 for backward Euler)
-                splitting += S.alpha[0] * float((v_new - v_star) @ (masses[i] @ (v_bar - S.average([v_new, v_star]))))
-            stored.update(stored_f)
-            work = {k: w for k, w in a.work.items() if k != "work.splitting"}
-            work.update(work_f)
-            if self.beta:  # the β force's net work: a scheme term, not work of a load
-                dissipation_beta = dt * float(tau @ v_bar) - a.work["work.splitting"]
-            dissipation = {k: d for k, d in a.dissipation.items() if k != "dissipation.numerical.wall"}
-            dissipation["dissipation.numerical.A1"] = a.dissipation["dissipation.numerical.wall"]
-            dissipation["dissipation.numerical.A2"] = f["dissipation.numerical.fluid"] + numerical_thin
-            dissipation.update(diss_f)
-            if S.name != "backward-euler":
-                dissipation["dissipation.splitting"] = splitting
-            if self.beta:
-                dissipation["dissipation.beta"] = dissipation_beta
-            report = StepReport(stored, work, dissipation, {
-                "energy.relative_residual.A1": relative(a1_res, a1_scale),
-                "energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),
-            })
-            yield new, report
-            state = new
+            report = self.report(setup, state, a, f, masses, v_new, v_bar, tau)
+            state = state.then(S.old_levels, n=n + 1, t=t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
+                               extra={"traction": traction})
+            yield state, report
+
+    def report(self, setup, state: State, a, f, masses, v_new, v_bar, tau) -> StepReport:
+        """The step's ledger: A1's identity and A2's, the thin layer's inertia resolved on its own side.
+
+        The thin layer's kinetic energy after A1 (velocity ``a.v``) is the one A2
+        starts from; what testing its A2 inertia with v̄ leaves beyond the
+        scheme's identity is ``dissipation.splitting`` (0 for backward Euler),
+        the β force's net work ``dissipation.beta`` (theory §6).
+        """
+        S, dt = self.scheme, setup.dt
+        v_star = a.v
+        stored = {**a.stored}
+        numerical_thin = splitting = 0.0
+        for i, mass in masses.items():
+            kinetic = quadratic(mass)
+            stored[f"kinetic.layers[{i}]"] = S.stored(kinetic, [v_new, v_star])
+            numerical_thin += S.numerical(kinetic, [v_new, v_star])
+            splitting += S.alpha[0] * float((v_new - v_star) @ (mass @ (v_bar - S.average([v_new, v_star]))))
+        stored_f, work_f, dissipation_f = fluid_groups(f)
+        stored.update(stored_f)
+        work = {**{k: w for k, w in a.work.items() if k != "work.splitting"}, **work_f}
+        dissipation = {k: d for k, d in a.dissipation.items() if k != "dissipation.numerical.wall"}
+        dissipation["dissipation.numerical.A1"] = a.dissipation["dissipation.numerical.wall"]
+        dissipation["dissipation.numerical.A2"] = f["dissipation.numerical.fluid"] + numerical_thin
+        dissipation.update(dissipation_f)
+        if S.name != "backward-euler":
+            dissipation["dissipation.splitting"] = splitting
+        if self.beta:  # the β force's net work: a term of the scheme, not work of a load
+            dissipation["dissipation.beta"] = dt * float(tau @ v_bar) - a.work["work.splitting"]
+        before = sum(wall_energy(setup.stack, S, state, LUMEN).values())  # A1's own identity, as a diagnostic
+        after = sum(a.stored.values())
+        a1_residual = after - before - sum(a.work.values()) + sum(a.dissipation.values())
+        return StepReport(stored, work, dissipation, {
+            "energy.relative_residual.A1": relative(a1_residual, max(abs(after), abs(before), 1e-300)),
+            "energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),
+        })
 
 
 @hookimpl
