@@ -5,11 +5,12 @@ Couplers are plugins; what more than one of them needs lives here once.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import scipy.sparse as sp
 
+from multilayer.interfaces import Domain
 from multilayer.setup import Setup
 from multilayer.timescheme import TimeScheme
 from multilayer.wall import LUMEN
@@ -56,12 +57,29 @@ def external_force(setup: Setup, pressure: float) -> np.ndarray:
     return -pressure * setup.wall.line_load(setup.wall.outer_line)
 
 
-def fluid_groups(terms: Mapping[str, float]) -> tuple[dict, dict, dict]:
-    """The fluid's identity terms as ledger groups (stored, work, dissipation)."""
+def fluid_groups(terms: Mapping[str, float], numerical: bool = True) -> tuple[dict, dict, dict]:
+    """The fluid's identity terms as ledger groups (stored, work, dissipation).
+
+    ``numerical=False`` leaves the fluid's numerical dissipation out, for a
+    coupler that reports it together with another's.
+    """
     stored = {"kinetic.fluid": terms["kinetic.fluid"]}
     work = {k: terms[k] for k in ("work.inlet", "work.outlet", "work.wall") if k in terms}
-    dissipation = {k: terms[k] for k in ("dissipation.viscous.fluid", "dissipation.geometric.fluid")}
-    return stored, work, dissipation
+    keys = ("dissipation.viscous.fluid", "dissipation.geometric.fluid") + (
+        ("dissipation.numerical.fluid",) if numerical else ())
+    return stored, work, {k: terms[k] for k in keys}
+
+
+def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Domain:
+    """The explicit domain of a step whose wall is not known yet (monolithic, Dirichlet–Neumann).
+
+    The wall velocity is extrapolated to where the scheme evaluates its
+    operator, the displacement integrated from it (Σα_k η^{n+1−k} = Δt c),
+    and the domain is the scheme's geometry of those (theory §6).
+    """
+    etas = [x.eta for x in history]
+    velocity = scheme.extrapolate([x.v for x in history])
+    return Domain(scheme.geometry([scheme.displacement(velocity, etas, dt), *etas]), velocity)
 
 
 def quadratic(M: sp.spmatrix):

@@ -31,9 +31,9 @@ from collections.abc import Iterator
 import numpy as np
 
 from multilayer.acceleration import IQNILS, Aitken
-from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, window_loads
+from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, predicted_domain, window_loads
 from multilayer.hookspecs import hookimpl
-from multilayer.interfaces import Coupler, Domain, SchemeFailure, StepReport
+from multilayer.interfaces import Coupler, SchemeFailure, StepReport
 from multilayer.records import CouplerPlugin, Param
 from multilayer.state import State
 from multilayer.structure import StructureStep, wall_energy
@@ -76,9 +76,8 @@ class DirichletNeumann(Coupler):
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
-            etas = [x.eta for x in history]
-            x = S.extrapolate([x.v for x in history])  # the wall velocity the fluid sees first
-            domain = Domain(S.geometry([S.displacement(x, etas, dt), *etas]), x)
+            domain = predicted_domain(S, history, dt)
+            x = domain.velocity  # the wall velocity the fluid sees first
             system = fluid.system([s.fluid for s in history], domain, S, dt, loads["inlet"], loads["outlet"])
             if accelerate is not None:
                 accelerate.start()
@@ -103,14 +102,13 @@ class DirichletNeumann(Coupler):
                 x = accelerate.next(x, x_tilde, change)
                 x[ends] = 0.0
             eta_new = P.T @ w.wall.d
-            terms = fluid.identity(prescribed, solution, etas[0], eta_new)
+            terms = fluid.identity(prescribed, solution, state.eta, eta_new)
             extra = {"acceleration": accelerate.memory()} if accelerate is not None else {}
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=P.T @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             work = {k: v for k, v in {**w.work, **work_f}.items() if k not in ("work.fluid", "work.wall")}
             dissipation = {**w.dissipation, **dissipation_f,
-                           "dissipation.numerical.fluid": terms["dissipation.numerical.fluid"],
                            "dissipation.interface": -(work_f["work.wall"] + w.work["work.fluid"])}
             yield state, StepReport({**w.stored, **stored_f}, work, dissipation,
                                     {"iterations": float(iterations), "interface.residual": residual})

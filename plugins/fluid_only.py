@@ -67,7 +67,6 @@ class FluidOnly(Coupler):
                                 eta_old=etas[1], eta_new=etas[0])
             state = state.then(S.old_levels, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
             stored, work, dissipation = fluid_groups(f)
-            dissipation["dissipation.numerical.fluid"] = f["dissipation.numerical.fluid"]
             yield state, StepReport(stored, work, dissipation,
                                     {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"]})
 

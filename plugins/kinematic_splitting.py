@@ -125,7 +125,7 @@ class KinematicSplitting(Coupler):
             stored[f"kinetic.layers[{i}]"] = S.stored(kinetic, [v_new, v_star])
             numerical_thin += S.numerical(kinetic, [v_new, v_star])
             splitting += S.alpha[0] * float((v_new - v_star) @ (mass @ (v_bar - S.average([v_new, v_star]))))
-        stored_f, work_f, dissipation_f = fluid_groups(f)
+        stored_f, work_f, dissipation_f = fluid_groups(f, numerical=False)
         stored.update(stored_f)
         work = {**{k: w for k, w in a.work.items() if k != "work.splitting"}, **work_f}
         dissipation = {k: d for k, d in a.dissipation.items() if k != "dissipation.numerical.wall"}

@@ -24,9 +24,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from multilayer.assembly.pattern import Pattern
-from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, window_loads
+from multilayer.coupling import coupled_case_problems, external_force, fluid_groups, predicted_domain, window_loads
 from multilayer.hookspecs import hookimpl
-from multilayer.interfaces import Coupler, Domain, StepReport
+from multilayer.interfaces import Coupler, StepReport
 from multilayer.linsolve import ReusingSolver
 from multilayer.records import CouplerPlugin
 from multilayer.state import State
@@ -74,11 +74,7 @@ class Monolithic(Coupler):
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
-            etas = [x.eta for x in history]
-            # the explicit domain: the wall velocity extrapolated to where the operator is evaluated
-            v_pred = S.extrapolate([x.v for x in history])
-            eta_pred = S.displacement(v_pred, etas, dt)
-            domain = Domain(S.geometry([eta_pred, *etas]), v_pred)
+            domain = predicted_domain(S, history, dt)
             system = fluid.system([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"])
             A_f, b_f, fixed_f, values_f = fluid.matrix(system)
             if layout is None or not layout.fits(A_f):
@@ -96,13 +92,11 @@ class Monolithic(Coupler):
             solution = fluid.advance(system, x[: fluid.ndofs])
             w = structure.finish(history, x[glob], forces)
             eta_new = P.T @ w.wall.d
-            terms = fluid.identity(system, solution, etas[0], eta_new)
+            terms = fluid.identity(system, solution, state.eta, eta_new)
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=fluid.wall_velocity(solution.state), eta=eta_new)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
-            dissipation = {**w.dissipation, **dissipation_f,
-                           "dissipation.numerical.fluid": terms["dissipation.numerical.fluid"]}
-            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, dissipation)
+            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, {**w.dissipation, **dissipation_f})
 
 
 class Layout:
