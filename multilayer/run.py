@@ -368,7 +368,7 @@ def _timings(setup: Setup | None) -> dict[str, float]:
     out = dict.fromkeys(("assembly", "factorization", "solves", "output", "ledger"), 0.0)
     if setup is None:
         return out
-    stats = [*setup.solvers.values(), *([setup.fluid.stats] if setup.fluid is not None else [])]
+    stats = _all_stats(setup)
     out["assembly"] = setup.timings.get("assembly", 0.0)
     out["output"] = setup.timings.get("output", 0.0)
     out["factorization"] = sum(st.factorization_s for st in stats)

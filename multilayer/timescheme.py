@@ -117,7 +117,7 @@ class TimeScheme:
         return (dt * vbar - sum(a * d for a, d in zip(self.alpha[1:], old))) / self.alpha[0]
 
     def displacement_gain(self, dt: float) -> float:
-        """∂d̄/∂v̄: the operator sees d̄ = Σβ_k d^{n+1−k} = gain·v̄ + (old levels); gain = β₀²Δt/α₀·(1/β₀)."""
+        """∂d̄/∂v̄ = β₀Δt/α₀: the operator sees d̄ = Σβ_k d^{n+1−k} = gain·v̄ + (the old levels' share)."""
         return self.beta[0] * dt / self.alpha[0]
 
     def displacement_average_history(self, old_d: Sequence[np.ndarray]) -> np.ndarray:
