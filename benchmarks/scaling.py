@@ -12,6 +12,12 @@ system timed in the same process, and peak RSS.  At the end it prints the
 least-squares exponent p of time per step ∝ N^p over the meshes with at
 least ``--fit-from`` unknowns.
 
+The fresh factorization is a numeric factorization by the run's own backend
+instance, on the ordering the run already keeps for the pattern (what a
+refactorizing step pays); ``--colamd`` adds one by SuperLU with its COLAMD
+ordering (``superlu-colamd``, what every step paid before the ordering was
+kept) and the peak RSS is read before both.
+
     python benchmarks/scaling.py                                   # 5k → ~1e6 unknowns
     python benchmarks/scaling.py --meshes 60x8 120x16 240x32 --steps 6
     python benchmarks/scaling.py --set solver.reuse=none --no-fresh
@@ -30,10 +36,12 @@ import time
 from pathlib import Path
 
 CASE = Path(__file__).parents[1] / "cases" / "pulse-koiter-thick.toml"
-MESHES = ("60x8", "120x16", "240x32", "480x64", "960x128", "1440x192")
+MESHES = ("60x8", "120x16", "240x32", "480x64", "960x128")
+#: fluid unknowns above which --colamd is skipped: COLAMD's fill at ~1e6 unknowns would need ~20–25 GB
+COLAMD_LIMIT = 400_000
 
 
-def one(mesh: str, steps: int, sets: list[str], fresh: bool) -> dict:
+def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = False) -> dict:
     """Run ``steps`` steps on ``mesh`` in this process; the row to print."""
     from multilayer.casefile import load_case
     from multilayer.linsolve import SolverStats, factorize
@@ -58,22 +66,32 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool) -> dict:
             next(run)
             samples.append({"step": time.perf_counter() - t0,
                             **{k: v - before[k] for k, v in _counters(setup).items()}})
-        fresh_s = None
-        if fresh and fluid.discrete.last_matrix is not None:
+        peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # the run's, before the extras
+        fresh_s = colamd_s = None
+        A = fluid.discrete.last_matrix
+        if fresh and A is not None:
+            # the run's own backend instance: a numeric factorization on the ordering the run already has
             t0 = time.perf_counter()
-            factorize(fluid.discrete.last_matrix, SolverStats(), case.solver)
+            factorize(A, SolverStats(backends=fluid.stats.backends), case.solver)
             fresh_s = time.perf_counter() - t0
+            n_fluid = setup.dof_counts().get("fluid", 0)
+            if colamd and n_fluid <= COLAMD_LIMIT:  # the factorization before the ordering was kept
+                t0 = time.perf_counter()
+                factorize(A, SolverStats(), "superlu-colamd")
+                colamd_s = time.perf_counter() - t0
     warm = samples[1:] or samples
     dofs = setup.dof_counts()
     n = dofs.get("fluid", 0) + dofs.get("wall", 0)
     row = {"mesh": mesh, "unknowns": n, "dofs": dofs, "steps": len(warm), "build_s": build_s,
            "first_step_s": samples[0]["step"],
            **{f"median.{k}": statistics.median(s[k] for s in warm) for k in samples[0]},
-           "fresh_fluid_factorization_s": fresh_s,
-           "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
+           "fresh_fluid_factorization_s": fresh_s, "colamd_fluid_factorization_s": colamd_s,
+           "peak_rss_mb": peak_rss_mb}
     row["peak_rss_kb_per_unknown"] = row["peak_rss_mb"] * 1024.0 / n
     if fresh_s:
         row["ratio_to_one_fluid_factorization"] = row["median.step"] / fresh_s
+    if colamd_s:
+        row["ratio_to_one_colamd_factorization"] = row["median.step"] / colamd_s
     return row
 
 
@@ -104,16 +122,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--fit-from", type=int, default=20_000, help="fit the exponent from this many unknowns up")
     ap.add_argument("--no-fresh", dest="fresh", action="store_false", help="skip the fresh factorization")
+    ap.add_argument("--colamd", action="store_true",
+                    help="also time a SuperLU factorization with COLAMD (solver.linear = 'superlu-colamd')")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per mesh before giving up")
     ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mesh in this process
     args = ap.parse_args(argv)
     if args.one:
-        print(json.dumps(one(args.one, args.steps, args.sets, args.fresh)), flush=True)
+        print(json.dumps(one(args.one, args.steps, args.sets, args.fresh, args.colamd)), flush=True)
         return 0
     rows = []
     for mesh in args.meshes:
         cmd = [sys.executable, __file__, "--one", mesh, "--steps", str(args.steps),
-               *[a for s in args.sets for a in ("--set", s)], *([] if args.fresh else ["--no-fresh"])]
+               *[a for s in args.sets for a in ("--set", s)], *([] if args.fresh else ["--no-fresh"]),
+               *(["--colamd"] if args.colamd else [])]
         try:
             out = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
         except subprocess.TimeoutExpired:

@@ -353,14 +353,21 @@ def _factorizations(setup: Setup | None) -> dict[str, int]:
 
 
 def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
-    """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``)."""
+    """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``), and the
+    iterative-refinement sweeps after direct solves where there were any."""
     if setup is None:
         return {}
     stats = dict(setup.solvers)
     if setup.fluid is not None:
         stats["fluid"] = setup.fluid.stats
-    return {name: {"solves": st.krylov_solves, "iterations": st.krylov_iterations}
-            for name, st in stats.items() if getattr(st, "krylov_solves", 0) or getattr(st, "krylov_iterations", 0)}
+    out = {}
+    for name, st in stats.items():
+        row = {"solves": st.krylov_solves, "iterations": st.krylov_iterations}
+        if getattr(st, "refinements", 0):
+            row["refinements"] = st.refinements
+        if any(row.values()):
+            out[name] = row
+    return out
 
 
 def _timings(setup: Setup | None) -> dict[str, float]:
