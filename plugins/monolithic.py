@@ -80,7 +80,7 @@ class Monolithic(Coupler):
             if layout is None or not layout.fits(A_f):
                 layout = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
             forces = {"external": external_force(setup, loads["external"])}
-            data = layout.pattern.fill([(layout.fluid_slots, A_f.data), (layout.wall_slots, A_wall.data)])
+            data = layout.fill(A_f.data, A_wall.data)
             b = np.zeros(n)
             b[: fluid.ndofs] = b_f
             np.add.at(b, glob, structure.rhs(history, forces))
@@ -112,8 +112,7 @@ class Layout:
         fluid_entries = (f.row.astype(np.int64), f.col.astype(np.int64))
         wall_entries = (glob[A_wall.row], glob[A_wall.col])
         self.pattern = Pattern((n, n), [fluid_entries, wall_entries])
-        self.fluid_slots = self.pattern.slots(*fluid_entries)
-        self.wall_slots = self.pattern.slots(*wall_entries)
+        self.fill = self.pattern.filler([self.pattern.slots(*fluid_entries), self.pattern.slots(*wall_entries)])
         self.fixed = np.unique(fixed)
         self.free = np.setdiff1d(np.arange(n), self.fixed)
         self.free_free = self.pattern.block(self.free, self.free)

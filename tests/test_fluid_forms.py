@@ -52,15 +52,22 @@ def test_batched_assembly_equals_scikit_fem(order):
         (forms.advection_skew, (ch.velocity,), dict(kw, a=a)),
         (forms.pressure_divergence, (ch.velocity, ch.pressure), kw),
     ]
+    x = np.random.default_rng(0).standard_normal(ch.velocity.N)
     for form, bases, w in cases:
-        batched = BatchedForm(*bases)
         shape = (bases[-1].N, bases[0].N)
-        A = sp.coo_matrix((batched.data(form, **w), (batched.rows, batched.cols)), shape=shape).tocsr()
         B = asm(form, *bases, **w)
-        assert abs(A - B).max() <= 1e-13 * abs(B).max(), form.form.__name__
-        x = np.random.default_rng(0).standard_normal(bases[0].N)
-        Ax = batched.apply(batched.kernel(form, **w), x)
-        assert np.allclose(Ax, B @ x, rtol=0, atol=1e-13 * abs(B).max() * np.abs(x).sum())
+        for chunk in (5, 1024):  # chunks that split the 24 elements unevenly, and one chunk of all
+            batched = BatchedForm(*bases, chunk=chunk)
+            A = sp.coo_matrix((batched.data([(1.0, form, w)]), (batched.rows, batched.cols)), shape=shape).tocsr()
+            assert abs(A - B).max() <= 1e-13 * abs(B).max(), form.form.__name__
+            Ax = batched.apply([(1.0, form, w)], x)
+            assert np.allclose(Ax, B @ x, rtol=0, atol=1e-13 * abs(B).max() * np.abs(x).sum())
+    # a sum of terms is the sum of their matrices, in one contraction
+    batched = BatchedForm(ch.velocity, chunk=7)
+    terms = [(c, form, w) for c, (form, bases, w) in zip((2.0, -0.5, 3.0, 1.5), cases[:4])]
+    A = sp.coo_matrix((batched.data(terms), (batched.rows, batched.cols))).tocsr()
+    B = sum(c * asm(form, ch.velocity, **w) for c, form, w in terms)
+    assert abs(A - B).max() <= 1e-13 * abs(B).max()
 
 
 def test_advection_is_skew_and_the_rest_symmetric():

@@ -15,6 +15,11 @@ batched matrix products with the jets Ξ of the reference basis, stacked
 once at setup.  The form functions of :mod:`multilayer_plugins.channel.forms` are
 used unchanged (they also run under ``skfem.asm``; a test checks that both
 give the same matrices).
+
+A sum of terms is assembled chunk by chunk of elements: the kernels of all
+terms on a chunk are summed and contracted before the next chunk, so no
+array of all elements' kernels is ever formed (their size, not the
+arithmetic, is what made one pass slow on large meshes).
 """
 
 from __future__ import annotations
@@ -23,8 +28,14 @@ import numpy as np
 import skfem
 from skfem.assembly.form.form import FormExtraParams
 
-#: Elements per chunk: bounds the memory of the (elements × points × jets × functions) arrays.
-CHUNK = 4096
+#: Elements per chunk.  Every array of a chunk (the kernels, ~36 numbers per
+#: point and element) stays in cache: on 61k elements the form kernels and
+#: their contraction took half the time in chunks of 1024 as in one pass
+#: (docs/performance.md, "Assembly").
+CHUNK = 1024
+
+#: A term of a sum of forms: (scale, form, fields) — ``scale · form`` with the coefficient fields ``fields``.
+Term = tuple
 
 
 class Field(np.ndarray):
@@ -72,66 +83,88 @@ def unit_jets(basis: skfem.CellBasis, axis: int) -> Field:
 
 
 class BatchedForm:
-    """Assemble bilinear forms on (trial ``ubasis``, test ``vbasis``) through their kernels.
+    """Assemble sums of bilinear forms on (trial ``ubasis``, test ``vbasis``) through their kernels.
 
-    :meth:`kernel` evaluates a form's K at every quadrature point; kernels
-    of one pair of bases add up, so a sum of terms costs one contraction
-    (:meth:`matrix_data`).  The element matrices are flattened in the order
-    of :attr:`rows` and :attr:`cols` (test i, trial j, element e).
+    :meth:`data` evaluates the kernels K of a list of terms ``(scale, form,
+    fields)`` chunk by chunk of elements, sums them and contracts the sum
+    with the basis jets: one contraction for any number of terms.  The
+    element matrices are flattened in the order of :attr:`rows` and
+    :attr:`cols` (element e, test i, trial j).  The jets of a basis are
+    stacked once; ``jets_u`` shares them with another form on the same
+    trial basis.
 
     >>> from skfem import BilinearForm, ElementTriP2, ElementVector, MeshTri, asm
     >>> import scipy.sparse as sp
     >>> basis = skfem.Basis(MeshTri().refined(1), ElementVector(ElementTriP2()))
     >>> form = BilinearForm(lambda u, v, w: w.x[0] * (u.grad[0][1] * v.grad[1][0] + u[0] * v[1]))
     >>> b = BatchedForm(basis)
-    >>> A = sp.coo_matrix((b.data(form), (b.rows, b.cols))).tocsr()
+    >>> A = sp.coo_matrix((b.data([(1.0, form, {})]), (b.rows, b.cols))).tocsr()
     >>> bool(abs(A - asm(form, basis)).max() < 1e-14)
     True
     """
 
-    def __init__(self, ubasis: skfem.CellBasis, vbasis: skfem.CellBasis | None = None):
+    def __init__(self, ubasis: skfem.CellBasis, vbasis: skfem.CellBasis | None = None,
+                 jets_u: np.ndarray | None = None, chunk: int = CHUNK):
+        same = vbasis is None or vbasis is ubasis
         vbasis = ubasis if vbasis is None else vbasis
         self.nelems = ubasis.nelems
+        self.chunk = chunk
         self.dx = ubasis.dx
         self.x = np.asarray(ubasis.global_coordinates())
-        self._xi_u = jets(ubasis)
+        self._xi_u = jets(ubasis) if jets_u is None else jets_u
+        self._xi_v = self._xi_u if same else jets(vbasis)
         f = ubasis.basis[0][0]
         self._vshape, self._gshape = np.shape(f)[:-2], np.shape(f.grad)[:-2]
-        xi_v = jets(vbasis)
-        ne, nq, nv, ni = xi_v.shape
-        self._xi_v_t = xi_v.reshape(ne, nq * nv, ni).transpose(0, 2, 1).copy()  # (e, i, q·jet)
         self._unit_u = unit_jets(ubasis, -4)
         self._unit_v = unit_jets(vbasis, -3)
         self._udofs = ubasis.element_dofs
         self._vdofs = vbasis.element_dofs
         self._nv_dofs = vbasis.N
-        nj = ubasis.Nbfun
-        self.shape = (ni, nj, self.nelems)
-        self.rows = np.broadcast_to(vbasis.element_dofs[:, None, :], self.shape).ravel()
-        self.cols = np.broadcast_to(ubasis.element_dofs[None, :, :], self.shape).ravel()
+        ni, nj = vbasis.Nbfun, ubasis.Nbfun
+        self.shape = (self.nelems, ni, nj)
+        self.rows = np.broadcast_to(vbasis.element_dofs.T[:, :, None], self.shape).ravel()
+        self.cols = np.broadcast_to(ubasis.element_dofs.T[:, None, :], self.shape).ravel()
 
-    def kernel(self, form, **w) -> np.ndarray:
-        """K (elements, points, test jet, trial jet) of ``form``, weighted by the quadrature (dx)."""
-        params = FormExtraParams({k: np.asarray(a) if np.ndim(a) >= 2 else a for k, a in w.items()}, x=self.x)
-        K = form.form(self._unit_u, self._unit_v, params)
+    @property
+    def jets(self) -> np.ndarray:
+        """Ξ_u, the trial basis' jets (elements, points, jet, function): to share with another form."""
+        return self._xi_u
+
+    def _chunks(self):
+        for e0 in range(0, self.nelems, self.chunk):
+            yield slice(e0, min(e0 + self.chunk, self.nelems))
+
+    def kernel(self, terms: list[Term], cut: slice = slice(None)) -> np.ndarray:
+        """Σ scale · K (elements, points, test jet, trial jet) of the terms on elements ``cut``, times dx."""
+        x = self.x[:, cut]
+        total = None
+        for scale, form, fields in terms:
+            params = FormExtraParams({k: np.asarray(a)[..., cut, :] if np.ndim(a) >= 2 else a
+                                      for k, a in fields.items()}, x=x)
+            K = form.form(self._unit_u, self._unit_v, params)
+            K = scale * K if total is None else total + scale * K
+            total = K
         nv, nu = self._unit_v.shape[-4], self._unit_u.shape[-3]
-        K = np.broadcast_to(K, (nv, nu, *self.dx.shape))
-        return np.moveaxis(K, (0, 1), (2, 3)) * self.dx[..., None, None]
+        total = np.broadcast_to(total, (nv, nu, *x.shape[1:]))
+        return np.moveaxis(total, (0, 1), (2, 3)) * self.dx[cut, :, None, None]
 
-    def matrix_data(self, K: np.ndarray) -> np.ndarray:
-        """Element matrices Σ_q Ξ_vᵀ K Ξ_u of a (sum of) kernel(s), flattened as :attr:`rows`."""
-        out = np.empty((self.nelems, *self.shape[:2]))
-        for e0 in range(0, self.nelems, CHUNK):
-            cut = slice(e0, min(e0 + CHUNK, self.nelems))
-            Y = K[cut] @ self._xi_u[cut]  # (e, q, test jet, j)
-            out[cut] = self._xi_v_t[cut] @ Y.reshape(Y.shape[0], -1, Y.shape[-1])
-        return out.transpose(1, 2, 0).ravel()
+    def data(self, terms: list[Term]) -> np.ndarray:
+        """Element matrices Σ_q Ξ_vᵀ K Ξ_u of the sum of ``terms``, flattened as :attr:`rows`."""
+        out = np.empty(self.shape)
+        for cut in self._chunks():
+            Y = self.kernel(terms, cut) @ self._xi_u[cut]  # (e, q, test jet, j)
+            ne, nq, nv, nj = Y.shape
+            Xv = self._xi_v[cut].reshape(ne, nq * nv, -1)
+            out[cut] = Xv.transpose(0, 2, 1) @ Y.reshape(ne, nq * nv, nj)
+        return out.ravel()
 
-    def apply(self, K: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """A u for the matrix A of kernel K, without forming A (a test-space vector)."""
-        xi = np.einsum("eqmj,je->eqm", self._xi_u, u[self._udofs])
-        y = np.einsum("eqnm,eqm->eqn", K, xi).reshape(self.nelems, -1)
-        local = np.einsum("eik,ek->ie", self._xi_v_t, y)
+    def apply(self, terms: list[Term], u: np.ndarray) -> np.ndarray:
+        """A u for the matrix A of the sum of ``terms``, without forming A (a test-space vector)."""
+        local = np.empty(self._vdofs.shape)
+        for cut in self._chunks():
+            xi = np.einsum("eqmj,je->eqm", self._xi_u[cut], u[self._udofs[:, cut]])
+            y = np.einsum("eqnm,eqm->eqn", self.kernel(terms, cut), xi)
+            local[:, cut] = np.einsum("eqni,eqn->ie", self._xi_v[cut], y)
         return np.bincount(self._vdofs.ravel(), weights=local.ravel(), minlength=self._nv_dofs)
 
     def trial_jets(self, u: np.ndarray, values_only: bool = False) -> np.ndarray:
@@ -150,7 +183,3 @@ class BatchedForm:
         jet = self.trial_jets(u)
         nv = int(np.prod(self._vshape, dtype=int))
         return _field(jet[:nv].reshape(*self._vshape, *jet.shape[1:]), jet[nv:].reshape(*self._gshape, *jet.shape[1:]))
-
-    def data(self, form, **w) -> np.ndarray:
-        """Element matrices of ``form`` (a ``skfem.BilinearForm``) with extra fields ``w``."""
-        return self.matrix_data(self.kernel(form, **w))

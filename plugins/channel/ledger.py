@@ -47,9 +47,16 @@ class Quadrature:
     def __init__(self, form: BatchedForm, density: float):
         self.form, self.density = form, density
 
-    def kinetic(self, J: np.ndarray, u: np.ndarray) -> float:
-        """½ρ_f ∫ J |u|², as :func:`fluid_kinetic` (to round-off)."""
-        v = self.form.trial_jets(u, values_only=True)
+    def values(self, u: np.ndarray) -> np.ndarray:
+        """u's values (component, elements, points) at the quadrature points: what :meth:`kinetic` takes.
+
+        They are linear in u, so a time scheme's combinations of levels may
+        be formed on the values of each level, computed once.
+        """
+        return self.form.trial_jets(u, values_only=True)
+
+    def kinetic(self, J: np.ndarray, v: np.ndarray) -> float:
+        """½ρ_f ∫ J |u|² from u's :meth:`values` ``v``, as :func:`fluid_kinetic` (to round-off)."""
         return 0.5 * self.density * float(np.sum(self.form.dx * J * (v[0] * v[0] + v[1] * v[1])))
 
     def strain_squared(self, u: np.ndarray, fields: ALEFields) -> float:

@@ -139,12 +139,12 @@ class FluidStep:
         ub, pb = channel.velocity, channel.pressure
         nu, n = channel.nu, channel.ndofs
         self._uu = BatchedForm(ub)
-        self._pu = BatchedForm(ub, pb)
+        self._pu = BatchedForm(ub, pb, jets_u=self._uu.jets)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
         self.pattern = Pattern((n, n), [uu, pu, pu[::-1]])
-        self._slots_uu = self.pattern.slots(*uu)
-        self._slots_pu = self.pattern.slots(*pu)
-        self._slots_up = self.pattern.slots(*pu[::-1])
+        # the data array of a step: velocity block, divergence rows, and their negated transpose
+        self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
+                                          self.pattern.slots(*pu[::-1])])
         #: the velocity DOF of each line DOF: where the wall's u_r sits
         self.interface_dofs = prolongation_dofs(channel.prolongation)
 
@@ -160,7 +160,7 @@ class FluidStep:
         self._load_in = forms.dynamic_pressure.assemble(channel.inlet, J=1.0)
         self._load_out = forms.dynamic_pressure.assemble(channel.outlet, J=1.0)
         self._rigid = ALEFields.rigid(channel)
-        self._static: dict[float, tuple] = {}  # rigid wall: kernels that depend on Δt/inertia only
+        self._static: dict[float, tuple] = {}  # rigid wall: element data of the geometry part, per mass coefficient
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
 
@@ -170,24 +170,38 @@ class FluidStep:
         return self.wall == "rigid" and not self.advection
 
     # -- assembly -------------------------------------------------------------
-    def _kernels(self, fields: ALEFields, mass_coefficient: float, a: np.ndarray | None):
-        """Kernels of the velocity block (all terms summed), of mass_J, and of the divergence."""
-        cached = self._static.get(mass_coefficient) if self.wall == "rigid" else None
-        if cached is not None:
-            K_static, K_mass, K_div = cached
-        else:
-            kw = fields.forms_kwargs()
-            K_mass = self._uu.kernel(forms.mass_J, **kw)
-            K_static = mass_coefficient * K_mass + (2.0 * self.viscosity) * self._uu.kernel(forms.viscous, **kw)
-            K_div = self._pu.kernel(forms.pressure_divergence, **kw)
-            if self.wall == "rigid":
-                self._static[mass_coefficient] = (K_static, K_mass, K_div)
-        K = K_static
+    # The forms of a step fall in three parts (docs/performance.md, "Assembly"):
+    # constant for the run (the basis jets, the sparsity pattern and its slots,
+    # the end-load vectors: built in __init__), geometry-only (mass_J, viscous,
+    # pressure_divergence: they depend on η alone) and state (moving_domain on
+    # the domain velocity, advection_skew on uⁿ − w).  The geometry part is
+    # kept where η never changes (a rigid wall); on a moving wall it changes
+    # every step and is assembled with the state part in one pass.
+    def _geometry_terms(self, fields: ALEFields, mass_coefficient: float) -> list:
+        kw = fields.forms_kwargs()
+        return [(mass_coefficient, forms.mass_J, kw), (2.0 * self.viscosity, forms.viscous, kw)]
+
+    def _state_terms(self, fields: ALEFields, a: np.ndarray | None) -> list:
+        terms = []
         if np.any(fields.dJdt):
-            K = K + self.density * self._uu.kernel(forms.moving_domain, dJdt=fields.dJdt)
+            terms.append((self.density, forms.moving_domain, {"dJdt": fields.dJdt}))
         if a is not None:
-            K = K + self.density * self._uu.kernel(forms.advection_skew, a=a, **fields.forms_kwargs())
-        return K, K_mass, K_div
+            terms.append((self.density, forms.advection_skew, dict(fields.forms_kwargs(), a=a)))
+        return terms
+
+    def _element_data(self, fields: ALEFields, mass_coefficient: float, a: np.ndarray | None):
+        """Element matrices of the velocity block (every term) and of the divergence block."""
+        state = self._state_terms(fields, a)
+        if self.wall != "rigid":
+            geometry = self._geometry_terms(fields, mass_coefficient)
+            div = self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())])
+            return self._uu.data(geometry + state), div
+        if mass_coefficient not in self._static:
+            self._static[mass_coefficient] = (
+                self._uu.data(self._geometry_terms(fields, mass_coefficient)),
+                self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())]))
+        velocity, div = self._static[mass_coefficient]
+        return (velocity + self._uu.data(state) if state else velocity), div
 
     def _interface_terms(self, interface: Interface | None) -> list[tuple[np.ndarray, np.ndarray]]:
         """(slots, values) of the coupler's matrix R on the wall u_r DOFs; slots looked up once per R."""
@@ -239,16 +253,13 @@ class FluidStep:
         constant = self._constant.get(key) if self.constant_matrix else None
         if constant is not None:
             own = constant[0]
-            K_mass = self._static[mass_coefficient][1]
         else:
             a = None
             if self.advection:
-                a = np.array(ch.velocity.interpolate(scheme.extrapolate([s.u for s in hist])))
+                a = self._uu.trial_jets(scheme.extrapolate([s.u for s in hist]), values_only=True)
                 a[1] -= fields.wr
-            K, K_mass, K_div = self._kernels(fields, mass_coefficient, a)
-            div = self._pu.matrix_data(K_div)
-            own = self.pattern.fill([(self._slots_uu, self._uu.matrix_data(K)), (self._slots_pu, div),
-                                     (self._slots_up, -div)])
+            velocity, div = self._element_data(fields, mass_coefficient, a)
+            own = self._fill(velocity, div, -div)
         data = own
         if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
             data = own.copy()
@@ -256,7 +267,7 @@ class FluidStep:
                 np.add.at(data, slots, values)
         own_rhs = np.zeros(ch.ndofs)
         h = scheme.history([s.u for s in hist])
-        own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply(K_mass, h)
+        own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply([(1.0, forms.mass_J, {"J": fields.J})], h)
         own_rhs[: ch.nu] += p_in * fields.J_in * self._load_in + p_out * fields.J_out * self._load_out
         rhs = own_rhs
         if interface is not None:
@@ -364,10 +375,11 @@ class FluidStep:
         def q(J):
             return lambda x: quad.kinetic(J, x)
 
+        us = [quad.values(u) for u in us]  # the identity's quadratures are on values, linear in the DOFs
         stored_new = S.stored(q(J_new), us)
         stored_old = S.stored(q(J_old), us[1:])
         geometric = (S.stored(q(J_new - fields.J), us) - S.stored(q(J_old - fields.J), us[1:])
-                     - dt * quad.kinetic(fields.dJdt, ubar))
+                     - dt * quad.kinetic(fields.dJdt, quad.values(ubar)))
         strain = quad.strain_squared(ubar, fields)
         # Q_in = −∫_Γin J u·n, Q_out = ∫_Γout J u·n: the load vectors are −∫ q·n on each end
         q_in = fields.J_in * float(self._load_in @ ubar)
