@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import time
+from collections import deque
 from collections.abc import Callable
 
 import attrs
@@ -273,7 +274,9 @@ class ReusingSolver:
     With ``reuse.mode == "none"`` every new matrix is factorized (a matrix
     passed again as the same object reuses its own factorization).  With
     ``"krylov"`` a new matrix is solved by right-preconditioned GMRES with the
-    held factorization (:func:`multilayer.krylov.preconditioned_gmres`); when
+    held factorization (:func:`multilayer.krylov.preconditioned_gmres`),
+    started from the solutions of the two latest new matrices extrapolated
+    linearly (:meth:`_guess`); when
     that does not reach the tolerance within ``max_iterations`` the matrix is
     factorized and solved directly, and its factorization is held instead.
     A matrix solved again right after (the same ``key``: the sub-iterations of
@@ -308,6 +311,7 @@ class ReusingSolver:
         self.last: sp.spmatrix | None = None  #: the latest matrix solved (benchmarks factorize it afresh)
         self._last_key = None
         self._factors: Factorized | None = None
+        self._solutions: deque[np.ndarray] = deque(maxlen=2)  # of the latest new matrices, newest last
 
     def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
         """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves."""
@@ -327,25 +331,42 @@ class ReusingSolver:
         (e.g. the data array it is a block of); by default A itself.
         """
         key = A if key is None else key
-        if self.stats.refactorize:
+        if self.stats.refactorize:  # as a run resumed here starts: no factors, no earlier solutions
             self.stats.refactorize, self._factors, self._matrix = False, None, None
+            self._solutions.clear()
         again, self._last_key, self.last = self._last_key is key, key, A
         if self.holds(key):
             return self._refined(A, b)
+        if self._solutions and self._solutions[-1].shape != b.shape:
+            self._solutions.clear()
+        x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
         if self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape:
             from multilayer.krylov import preconditioned_gmres
 
             t0 = time.perf_counter()
             x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
-                                                 self.reuse.max_iterations)
+                                                 self.reuse.max_iterations, self._guess())
             self.stats.krylov_iterations += iterations
             self.stats.krylov_s += time.perf_counter() - t0
             if x is not None:
                 self.stats.krylov_solves += 1
-                return x
-        self.factorize(A, key)
-        return self._refined(A, b)
+        if x is None:
+            self.factorize(A, key)
+            x = self._refined(A, b)
+        if not again:
+            self._solutions.append(x)
+        return x
+
+    def _guess(self) -> np.ndarray | None:
+        """The next solution extrapolated linearly from the last two new matrices' (None before there are any).
+
+        A step's solution changes smoothly from step to step, so 2xⁿ − x^{n−1}
+        is O(Δt²) off, and GMRES only has to gain the rest.
+        """
+        if len(self._solutions) == 2:
+            return 2.0 * self._solutions[1] - self._solutions[0]
+        return self._solutions[-1] if self._solutions else None
 
     def _refined(self, A: sp.spmatrix, b: np.ndarray) -> np.ndarray:
         """The held factors' solution of A x = b, with iterative refinement until ‖b − A x‖ ≤ tolerance ‖b‖.

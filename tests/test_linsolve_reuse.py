@@ -89,3 +89,26 @@ def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
         x = solver.solve(second, np.full(400, k + 1.0), key="step 2")
         assert np.linalg.norm(second @ x - (k + 1.0)) <= 1e-12 * np.sqrt(400) * (k + 1.0)
     assert stats.krylov_solves == 1 and stats.factorizations == 2
+
+
+def test_the_extrapolated_guess_saves_iterations_and_changes_no_answer(monkeypatch):
+    """Matrices and right-hand sides drifting smoothly: GMRES started from 2xⁿ − x^{n−1} gains fewer orders
+    than from M⁻¹b, and both reach the tolerance (the answers agree to it)."""
+    mats = drifting_matrices(steps=10, drift=1e-3)
+    rng = np.random.default_rng(5)
+    b0, db = rng.standard_normal(400), rng.standard_normal(400)
+    answers, iterations = {}, {}
+    for name in ("guess", "no guess"):
+        if name == "no guess":
+            monkeypatch.setattr(ReusingSolver, "_guess", lambda self: None)
+        stats = SolverStats()
+        solver = ReusingSolver(stats, "superlu", Reuse("krylov", 8, 1e-12))
+        xs = []
+        for k, A in enumerate(mats):
+            b = b0 + 1e-3 * k * db
+            xs.append(solver.solve(A, b))
+            assert np.linalg.norm(b - A @ xs[-1]) <= 1e-12 * np.linalg.norm(b)
+        answers[name], iterations[name] = np.array(xs), stats.krylov_iterations
+        assert stats.factorizations == 1
+    assert iterations["guess"] < iterations["no guess"]
+    assert np.max(np.abs(answers["guess"] - answers["no guess"])) <= 1e-10 * np.max(np.abs(answers["guess"]))

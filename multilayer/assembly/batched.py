@@ -148,9 +148,14 @@ class BatchedForm:
         total = np.broadcast_to(total, (nv, nu, *x.shape[1:]))
         return np.moveaxis(total, (0, 1), (2, 3)) * self.dx[cut, :, None, None]
 
-    def data(self, terms: list[Term]) -> np.ndarray:
-        """Element matrices Σ_q Ξ_vᵀ K Ξ_u of the sum of ``terms``, flattened as :attr:`rows`."""
-        out = np.empty(self.shape)
+    def data(self, terms: list[Term], out: np.ndarray | None = None) -> np.ndarray:
+        """Element matrices Σ_q Ξ_vᵀ K Ξ_u of the sum of ``terms``, flattened as :attr:`rows`.
+
+        ``out`` (of :attr:`shape`) is written and returned when given: a caller
+        that assembles every step keeps one, so a large mesh does not pay
+        fresh pages for a new array each time.
+        """
+        out = np.empty(self.shape) if out is None else out
         for cut in self._chunks():
             Y = self.kernel(terms, cut) @ self._xi_u[cut]  # (e, q, test jet, j)
             ne, nq, nv, nj = Y.shape

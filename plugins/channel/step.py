@@ -144,7 +144,7 @@ class FluidStep:
         self.pattern = Pattern((n, n), [uu, pu, pu[::-1]])
         # the data array of a step: velocity block, divergence rows, and their negated transpose
         self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
-                                          self.pattern.slots(*pu[::-1])])
+                                          self.pattern.slots(*pu[::-1])], scales=[1.0, 1.0, -1.0])
         #: the velocity DOF of each line DOF: where the wall's u_r sits
         self.interface_dofs = prolongation_dofs(channel.prolongation)
 
@@ -163,6 +163,7 @@ class FluidStep:
         self._static: dict[float, tuple] = {}  # rigid wall: element data of the geometry part, per mass coefficient
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
+        self._buffers: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def constant_matrix(self) -> bool:
@@ -193,9 +194,11 @@ class FluidStep:
         """Element matrices of the velocity block (every term) and of the divergence block."""
         state = self._state_terms(fields, a)
         if self.wall != "rigid":
+            if self._buffers is None:  # the element data of every step goes here: no fresh pages per step
+                self._buffers = (np.empty(self._uu.shape), np.empty(self._pu.shape))
             geometry = self._geometry_terms(fields, mass_coefficient)
-            div = self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())])
-            return self._uu.data(geometry + state), div
+            div = self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())], out=self._buffers[1])
+            return self._uu.data(geometry + state, out=self._buffers[0]), div
         if mass_coefficient not in self._static:
             self._static[mass_coefficient] = (
                 self._uu.data(self._geometry_terms(fields, mass_coefficient)),
@@ -259,7 +262,7 @@ class FluidStep:
                 a = self._uu.trial_jets(scheme.extrapolate([s.u for s in hist]), values_only=True)
                 a[1] -= fields.wr
             velocity, div = self._element_data(fields, mass_coefficient, a)
-            own = self._fill(velocity, div, -div)
+            own = self._fill(velocity, div, div)
         data = own
         if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
             data = own.copy()
