@@ -80,9 +80,15 @@ class Block:
     def __init__(self, indices: np.ndarray, indptr: np.ndarray, take: np.ndarray, shape: tuple[int, int]):
         self.indices, self.indptr, self.take, self.shape = indices, indptr, take, shape
 
-    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
-        """The block of the parent matrix whose CSR data is ``data``."""
-        return sp.csr_matrix((data[self.take], self.indices, self.indptr), shape=self.shape)
+    def matrix(self, data: np.ndarray, out: np.ndarray | None = None) -> sp.csr_matrix:
+        """The block of the parent matrix whose CSR data is ``data``.
+
+        With ``out`` (of ``len(take)``) the block's values are gathered into it
+        and the matrix shares it: a caller that takes the block every step
+        keeps one buffer instead of a fresh array (and its page faults) each time.
+        """
+        values = data[self.take] if out is None else np.take(data, self.take, out=out)
+        return sp.csr_matrix((values, self.indices, self.indptr), shape=self.shape)
 
 
 class Filler:

@@ -92,6 +92,9 @@ class FluidSystem:
     p_in: float
     p_out: float
     interface: Interface | None
+    #: what stands for this system's matrix in the solver (kept by ``attrs.evolve``: a prescribed wall
+    #: velocity changes the right-hand side only, so the same factors serve)
+    token: object = attrs.field(factory=object)
 
 
 @attrs.frozen(eq=False)
@@ -164,6 +167,10 @@ class FluidStep:
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
         self._buffers: tuple[np.ndarray, np.ndarray] | None = None
+        # the data with the interface terms and the free block's values: kept for the run, so only the latest
+        # system's matrix is valid — every coupler solves a system in the step that assembles it
+        self._with_interface: np.ndarray | None = None
+        self._free_values: np.ndarray | None = None
 
     @property
     def constant_matrix(self) -> bool:
@@ -265,7 +272,10 @@ class FluidStep:
             own = self._fill(velocity, div, div)
         data = own
         if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
-            data = own.copy()
+            if self._with_interface is None:
+                self._with_interface = np.empty_like(own)
+            data = self._with_interface  # kept for the run: the latest system's only (see solve)
+            np.copyto(data, own)
             for slots, values in self._interface_terms(interface):
                 np.add.at(data, slots, values)
         own_rhs = np.zeros(ch.ndofs)
@@ -290,8 +300,9 @@ class FluidStep:
 
         A constant matrix is factorized once per Δt; a changing one goes to
         the :class:`~multilayer.linsolve.ReusingSolver` (a fresh factorization,
-        or GMRES preconditioned by an earlier one; the same data array again —
-        sub-iterations change only the wall's values — reuses its own factors).
+        or GMRES preconditioned by an earlier one; the same system again (its
+        ``token``: sub-iterations change only the wall's values) reuses its own
+        factors).
         """
         t0 = time.perf_counter()
         rhs = system.rhs[self.free] - self._block_fd.matrix(system.data) @ system.fixed_values
@@ -305,7 +316,10 @@ class FluidStep:
                                                              self.solver))
             x[self.free] = self._constant[key][1].solve(rhs)
         else:
-            x[self.free] = self._solver.solve(self._block_ff.matrix(system.data), rhs, key=system.data)
+            if self._free_values is None:
+                self._free_values = np.empty(len(self._block_ff.take))
+            A = self._block_ff.matrix(system.data, out=self._free_values)
+            x[self.free] = self._solver.solve(A, rhs, key=system.token)
         return self.advance(system, x)
 
     @property
