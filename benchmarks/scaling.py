@@ -16,7 +16,10 @@ The fresh factorization is a numeric factorization by the run's own backend
 instance, on the ordering the run already keeps for the pattern (what a
 refactorizing step pays); ``--colamd`` adds one by SuperLU with its COLAMD
 ordering (``superlu-colamd``, what every step paid before the ordering was
-kept) and the peak RSS is read before both.
+kept) and the peak RSS is read before both.  Every step's kernel time
+and minor page faults are reported too (``median.system_s``,
+``median.page_faults``); ``--keep-freed-memory`` sets glibc's ``mallopt`` so
+that freed memory stays in the process, to measure what those faults cost.
 
     python benchmarks/scaling.py                                   # 5k → ~1e6 unknowns
     python benchmarks/scaling.py --meshes 60x8 120x16 240x32 --steps 6
@@ -61,11 +64,11 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = Fals
         fluid = setup.fluid
         samples = []
         for _ in range(steps):
-            before = _counters(setup)
+            before = {**_counters(setup), **_kernel()}
             t0 = time.perf_counter()
             next(run)
             samples.append({"step": time.perf_counter() - t0,
-                            **{k: v - before[k] for k, v in _counters(setup).items()}})
+                            **{k: v - before[k] for k, v in {**_counters(setup), **_kernel()}.items()}})
         peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # the run's, before the extras
         fresh_s = colamd_s = None
         A = fluid.discrete.last_matrix
@@ -93,6 +96,22 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = Fals
     if colamd_s:
         row["ratio_to_one_colamd_factorization"] = row["median.step"] / colamd_s
     return row
+
+
+def _kernel() -> dict[str, float]:
+    """The process's kernel time and minor page faults so far (what fresh memory costs)."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return {"system_s": r.ru_stime, "page_faults": float(r.ru_minflt)}
+
+
+def keep_freed_memory() -> None:
+    """glibc only: serve every allocation from the heap and never trim it, so freed memory is reused
+    without new page faults (``--keep-freed-memory``: to measure what those faults cost)."""
+    import ctypes
+
+    libc = ctypes.CDLL("libc.so.6")
+    libc.mallopt(-4, 0)  # M_MMAP_MAX: no mmap'd blocks
+    libc.mallopt(-1, 2**62)  # M_TRIM_THRESHOLD: never give the heap's top back
 
 
 def _counters(setup) -> dict[str, float]:
@@ -124,17 +143,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-fresh", dest="fresh", action="store_false", help="skip the fresh factorization")
     ap.add_argument("--colamd", action="store_true",
                     help="also time a SuperLU factorization with COLAMD (solver.linear = 'superlu-colamd')")
+    ap.add_argument("--keep-freed-memory", action="store_true",
+                    help="glibc mallopt: allocations from the heap, never trimmed (measures the page faults' cost)")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per mesh before giving up")
     ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mesh in this process
     args = ap.parse_args(argv)
     if args.one:
+        if args.keep_freed_memory:
+            keep_freed_memory()
         print(json.dumps(one(args.one, args.steps, args.sets, args.fresh, args.colamd)), flush=True)
         return 0
     rows = []
     for mesh in args.meshes:
         cmd = [sys.executable, __file__, "--one", mesh, "--steps", str(args.steps),
                *[a for s in args.sets for a in ("--set", s)], *([] if args.fresh else ["--no-fresh"]),
-               *(["--colamd"] if args.colamd else [])]
+               *(["--colamd"] if args.colamd else []), *(["--keep-freed-memory"] if args.keep_freed_memory else [])]
         try:
             out = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
         except subprocess.TimeoutExpired:
