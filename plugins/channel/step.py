@@ -76,6 +76,9 @@ class FluidSystem:
     ``matrix`` and ``rhs`` hold the fluid's own equations plus the coupler's
     interface terms; ``own`` is the data without the interface terms (for the
     wall reaction).  ``fixed`` are the Dirichlet DOFs with values ``fixed_values``.
+    With interface terms ``data`` is a buffer the step keeps for the run: it
+    holds this system's matrix until the next :meth:`FluidStep.system`, so a
+    system is solved in the step that assembles it (every coupler does).
     """
 
     data: np.ndarray
