@@ -9,9 +9,9 @@ numeric phases).
 
 :func:`nested_dissection` is METIS's nested dissection (through pymetis) of
 the symmetrized graph of A + Aᵀ.  On the 2D saddle-point systems here it
-fills much less than the column orderings SuperLU offers (COLAMD): at 277k
-fluid unknowns, 212 entries per row of L + U against ~800, a factorization
-~10× faster (docs/performance.md, "The ordering").
+fills much less than SuperLU's default column ordering (COLAMD): at 277k
+fluid unknowns, 211 entries per row of L + U against 663, a factorization
+6× faster (docs/performance.md, "The ordering").
 """
 
 from __future__ import annotations

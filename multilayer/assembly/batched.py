@@ -28,10 +28,9 @@ import numpy as np
 import skfem
 from skfem.assembly.form.form import FormExtraParams
 
-#: Elements per chunk.  Every array of a chunk (the kernels, ~36 numbers per
-#: point and element) stays in cache: on 61k elements the form kernels and
-#: their contraction took half the time in chunks of 1024 as in one pass
-#: (docs/performance.md, "Assembly").
+#: Elements per chunk: every array of a chunk (the kernels, 36 numbers per
+#: point and element) stays in cache, and no array of the whole mesh is made
+#: anew each step (docs/performance.md, "Assembly: constant, geometry, state").
 CHUNK = 1024
 
 #: A term of a sum of forms: (scale, form, fields) — ``scale · form`` with the coefficient fields ``fields``.
@@ -142,8 +141,7 @@ class BatchedForm:
             params = FormExtraParams({k: np.asarray(a)[..., cut, :] if np.ndim(a) >= 2 else a
                                       for k, a in fields.items()}, x=x)
             K = form.form(self._unit_u, self._unit_v, params)
-            K = scale * K if total is None else total + scale * K
-            total = K
+            total = scale * K if total is None else total + scale * K
         nv, nu = self._unit_v.shape[-4], self._unit_u.shape[-3]
         total = np.broadcast_to(total, (nv, nu, *x.shape[1:]))
         return np.moveaxis(total, (0, 1), (2, 3)) * self.dx[cut, :, None, None]
