@@ -36,7 +36,8 @@ import attrs
 
 #: Peak memory of a run per unknown (bytes) at :data:`DOFS_MEASURED` unknowns, measured and rounded up.
 BYTES_PER_DOF = 10_000
-#: The unknowns of the largest measured run (``pulse-koiter-thick`` at 480 x 64, order 2: 296 501), rounded up.
+#: Up to this many unknowns the memory per unknown was measured flat (``pulse-koiter-thick`` at 480 x 64,
+#: order 2: 296 501 unknowns, rounded up); beyond it, it grows like N^:data:`GROWTH` (measured to 1.15M).
 DOFS_MEASURED = 300_000
 #: Exponent of the growth of the memory per unknown beyond :data:`DOFS_MEASURED`, measured and rounded up.
 GROWTH = 0.25
