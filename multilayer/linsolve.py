@@ -18,7 +18,6 @@ refactorized only when GMRES needs more than a bound of iterations
 
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import time
 from collections import deque
@@ -158,8 +157,7 @@ class _Pardiso:
 
     def __call__(self, A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
         A = sp.csr_matrix(A, dtype=float, copy=True)
-        A.sort_indices()
-        key = (A.shape[0], hashlib.sha1(A.indptr).digest(), hashlib.sha1(A.indices).digest())
+        key = pattern_key(A)  # sorts A's indices, as PARDISO needs
         self._factorize(key, A)
 
         def solve(b: np.ndarray) -> np.ndarray:

@@ -23,15 +23,19 @@ import scipy.sparse as sp
 
 
 def pattern_key(A: sp.spmatrix) -> tuple:
-    """A key of A's sparsity pattern (shape and the digests of its CSC index arrays).
+    """A key of A's sparsity pattern: format, shape and the digests of its index arrays.
+
+    A CSR or CSC matrix is keyed in its own format (its indices sorted in
+    place), anything else as CSC, so a caller holding either pays no conversion.
 
     >>> A = sp.csc_matrix(np.eye(3)); B = 2.0 * A
     >>> pattern_key(A) == pattern_key(B), pattern_key(A) == pattern_key(sp.csc_matrix(np.ones((3, 3))))
     (True, False)
     """
-    A = sp.csc_matrix(A)
+    if A.format not in ("csr", "csc"):
+        A = sp.csc_matrix(A)
     A.sort_indices()
-    return (A.shape, hashlib.sha1(np.ascontiguousarray(A.indptr, dtype=np.int64)).digest(),
+    return (A.format, A.shape, hashlib.sha1(np.ascontiguousarray(A.indptr, dtype=np.int64)).digest(),
             hashlib.sha1(np.ascontiguousarray(A.indices, dtype=np.int64)).digest())
 
 
