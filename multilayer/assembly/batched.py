@@ -1,4 +1,4 @@
-"""Element matrices of a bilinear form, computed through its local kernel.
+"""Element matrices of a bilinear form, computed through its local kernel on the reference element.
 
 scikit-fem calls a bilinear form once per pair (i, j) of local basis
 functions — 144 calls for a P2 vector field, each on arrays of every
@@ -9,28 +9,38 @@ for a 2D vector field, 3 for a scalar).  So at each quadrature point
     form(u, q) = ξ_qᵀ K ξ_u,
 
 with a small kernel K (6 × 6 for the velocity block) that holds every
-coefficient field.  K is obtained by calling the form once on unit jets;
-the element matrices are then A_e = Σ_q dx_q Ξ_q,eᵀ K_q,e Ξ_u,e, two
-batched matrix products with the jets Ξ of the reference basis, stacked
-once at setup.  The form functions of :mod:`multilayer_plugins.channel.forms` are
-used unchanged (they also run under ``skfem.asm``; a test checks that both
-give the same matrices).
+coefficient field.  On an affine mesh a function's jet is ξ = T_e ξ̂, with
+ξ̂ its jet on the reference element (values, reference derivatives) and
+T_e the element's map of derivatives (∂_k = Σ_i (DF_e⁻¹)_ik ∂̂_i).  The
+reference jets Ξ̂ of the local basis are the same on every element, so
+
+    A_e = Σ_q dx_q Ξ̂_qᵀ K̂_q,e Ξ̂_q,        K̂ = T_eᵀ K T_e,
+
+and K̂ is what the form returns when called on unit *reference* jets mapped
+by T_e.  The element matrices of a chunk of elements are then one matrix
+product, B K̂ with B_(ij),(ab q) = Ξ̂_q,ai Ξ̂_q,bj stacked at setup — per pair
+of vector components, since a component's jets only meet its own functions.
+No array of the basis jets of every element is kept: a mesh is held as its
+maps DF_e⁻¹ (4 numbers an element) and the weights dx.  The form functions
+of :mod:`multilayer_plugins.channel.forms` are used unchanged (they also run
+under ``skfem.asm``; a test checks that both give the same matrices).
 
 A sum of terms is assembled chunk by chunk of elements: the kernels of all
 terms on a chunk are summed and contracted before the next chunk, so no
-array of all elements' kernels is ever formed (their size, not the
-arithmetic, is what made one pass slow on large meshes).
+array of all elements' kernels is ever formed.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import skfem
+from scipy.sparse.csgraph import connected_components
 from skfem.assembly.form.form import FormExtraParams
 
 #: Elements per chunk: every array of a chunk (the kernels, 36 numbers per
 #: point and element) stays in cache, and no array of the whole mesh is made
-#: anew each step (docs/performance.md, "Assembly: constant, geometry, state").
+#: anew each step (docs/performance.md, "Assembly").
 CHUNK = 1024
 
 #: A term of a sum of forms: (scale, form, fields) — ``scale · form`` with the coefficient fields ``fields``.
@@ -49,48 +59,78 @@ def _field(value: np.ndarray, grad: np.ndarray) -> Field:
     return field
 
 
-def jets(basis: skfem.CellBasis) -> np.ndarray:
-    """Ξ: (elements, points, jet, local function) for every local basis function.
+def affine_inverse(basis: skfem.CellBasis) -> np.ndarray:
+    """DF_e⁻¹ of every element, (dim, dim, elements); a ValueError when the mapping is not affine."""
+    inv = np.asarray(basis.mapping.invDF(basis.X, tind=basis.tind))  # (dim, dim, elements, points)
+    if not np.allclose(inv, inv[..., :1], rtol=1e-12, atol=0.0):
+        raise ValueError(f"batched assembly needs an affine mesh ({type(basis.mapping).__name__}: DF varies "
+                         "within an element)")
+    return np.ascontiguousarray(inv[..., 0])
 
-    A jet is (value components, then gradient components), row-major.
+
+def reference_jets(basis: skfem.CellBasis, inverse: np.ndarray) -> np.ndarray:
+    """Ξ̂: (jet, point, local function), the jets of the local basis on the reference element.
+
+    A jet is (value components, then derivative components), row-major; the
+    reference jets are read off the first element and checked on every
+    element (ξ = T_e ξ̂ to 1e-10): a ValueError when the basis is not one
+    reference basis mapped affinely.
     """
-    per_function = []
+    DF0 = np.linalg.inv(inverse[:, :, 0].T).T  # DF of element 0: Σ_k DF[k, i] ∂_k = ∂̂_i
+    out = []
     for (f,) in basis.basis:
-        value, grad = np.asarray(f), np.asarray(f.grad)
-        lead = value.ndim - 2
-        parts = [value.reshape(-1, *value.shape[lead:]), grad.reshape(-1, *grad.shape[-2:])]
-        per_function.append(np.concatenate(parts))  # (jet, elements, points)
-    return np.stack(per_function, axis=-1).transpose(1, 2, 0, 3).copy()
+        value, grad = np.asarray(f), np.asarray(f.grad)  # (*vshape, E, q), (*vshape, dim, E, q)
+        ref_grad = np.einsum("...kq,ki->...iq", grad[..., 0, :], DF0)
+        mapped = np.einsum("...iq,ike->...keq", ref_grad, inverse)
+        scale = max(np.abs(value).max(), np.abs(grad).max())
+        if (np.abs(value - value[..., :1, :]).max() > 1e-10 * scale
+                or np.abs(mapped - grad).max() > 1e-10 * scale):
+            raise ValueError(f"batched assembly needs one reference basis on every element; "
+                             f"{type(basis.elem).__name__} is not mapped affinely")
+        nq = value.shape[-1]
+        out.append(np.concatenate([value[..., 0, :].reshape(-1, nq), ref_grad.reshape(-1, nq)]))
+    return np.stack(out, axis=-1)
 
 
-def unit_jets(basis: skfem.CellBasis, axis: int) -> Field:
-    """One unit jet per slot of the basis' jet, stacked on ``axis`` (−4 trial, −3 test)."""
+def _components(ref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The (jet slots, local functions) that meet: a vector field's components, one group for a scalar."""
+    n, _, nf = ref.shape
+    meets = sp.coo_matrix(np.abs(ref).max(axis=1) > 0.0)
+    graph = sp.bmat([[None, meets], [meets.T, None]])
+    count, label = connected_components(graph, directed=False)
+    groups = [(np.flatnonzero(label[:n] == c), np.flatnonzero(label[n:] == c)) for c in range(count)]
+    return [(slots, funcs) for slots, funcs in groups if len(slots) and len(funcs)]
+
+
+def _unit_jets(basis: skfem.CellBasis, inverse: np.ndarray, trial: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(value, grad) of one unit reference jet per slot, mapped by T_e: the form arguments of the kernel.
+
+    The slot axis is −3 for the trial function and −4 for the test function
+    (a form's result is (test jet, trial jet, points, elements)); values do
+    not depend on the element, derivatives do (grad: (..., 1, elements)).
+    """
     f = basis.basis[0][0]
     vshape, gshape = np.shape(f)[:-2], np.shape(f.grad)[:-2]
     nv, ng = int(np.prod(vshape, dtype=int)), int(np.prod(gshape))
     n = nv + ng
     eye = np.eye(n)
-    value = eye[:nv].T.reshape(n, *vshape)  # (jet, *vshape)
-    grad = eye[nv:].T.reshape(n, *gshape)
-    value = np.moveaxis(value, 0, -1)[..., None, None]  # (*vshape, jet, 1, 1)
-    grad = np.moveaxis(grad, 0, -1)[..., None, None]
-    if axis == -4:
-        value, grad = value[..., None, :, :, :], grad[..., None, :, :, :]
-    else:
-        value, grad = value[..., :, None, :, :], grad[..., :, None, :, :]
-    return _field(value, grad)
+    value = np.moveaxis(eye[:nv].T.reshape(n, *vshape), 0, -1)[..., None, None]  # (*vshape, slot, 1, 1)
+    unit = eye[nv:].T.reshape(n, *gshape)  # (slot, *vshape, i): a unit reference derivative ∂̂_i
+    grad = np.einsum("s...i,ike->...kse", unit, inverse)[..., None, :]  # (*vshape, k, slot, 1, E)
+    if trial:
+        return value[..., None, :, :, :], grad[..., None, :, :, :]
+    return value[..., :, None, :, :], grad[..., :, None, :, :]
 
 
 class BatchedForm:
-    """Assemble sums of bilinear forms on (trial ``ubasis``, test ``vbasis``) through their kernels.
+    """Assemble sums of bilinear forms on (trial ``ubasis``, test ``vbasis``) through their reference kernels.
 
-    :meth:`data` evaluates the kernels K of a list of terms ``(scale, form,
+    :meth:`data` evaluates the kernels K̂ of a list of terms ``(scale, form,
     fields)`` chunk by chunk of elements, sums them and contracts the sum
-    with the basis jets: one contraction for any number of terms.  The
-    element matrices are flattened in the order of :attr:`rows` and
-    :attr:`cols` (element e, test i, trial j).  The jets of a basis are
-    stacked once; ``jets_u`` shares them with another form on the same
-    trial basis.
+    with the reference jets: one matrix product per pair of components for
+    any number of terms.  The element matrices are flattened in the order of
+    :attr:`rows` and :attr:`cols` (element e, test i, trial j).  Both bases
+    must live on one affine mesh with one quadrature.
 
     >>> from skfem import BilinearForm, ElementTriP2, ElementVector, MeshTri, asm
     >>> import scipy.sparse as sp
@@ -102,72 +142,101 @@ class BatchedForm:
     True
     """
 
-    def __init__(self, ubasis: skfem.CellBasis, vbasis: skfem.CellBasis | None = None,
-                 jets_u: np.ndarray | None = None, chunk: int = CHUNK):
-        same = vbasis is None or vbasis is ubasis
+    def __init__(self, ubasis: skfem.CellBasis, vbasis: skfem.CellBasis | None = None, chunk: int = CHUNK):
         vbasis = ubasis if vbasis is None else vbasis
+        if vbasis.nelems != ubasis.nelems or not np.array_equal(vbasis.dx, ubasis.dx):
+            raise ValueError("the trial and test bases must share the mesh and the quadrature")
         self.nelems = ubasis.nelems
         self.chunk = chunk
         self.dx = ubasis.dx
         self.x = np.asarray(ubasis.global_coordinates())
-        self._xi_u = jets(ubasis) if jets_u is None else jets_u
-        self._xi_v = self._xi_u if same else jets(vbasis)
+        self._x = np.ascontiguousarray(np.swapaxes(self.x, -1, -2))  # (dim, point, element), as the kernel takes it
+        self._dx = np.ascontiguousarray(self.dx.T)
+        self._inverse = affine_inverse(ubasis)
+        self._ref_u = reference_jets(ubasis, self._inverse)  # (trial jet, point, j)
+        self._ref_v = self._ref_u if vbasis is ubasis else reference_jets(vbasis, self._inverse)
         f = ubasis.basis[0][0]
         self._vshape, self._gshape = np.shape(f)[:-2], np.shape(f.grad)[:-2]
-        self._unit_u = unit_jets(ubasis, -4)
-        self._unit_v = unit_jets(vbasis, -3)
+        self._unit_u = _unit_jets(ubasis, self._inverse, trial=True)
+        self._unit_v = _unit_jets(vbasis, self._inverse, trial=False)
         self._udofs = ubasis.element_dofs
         self._vdofs = vbasis.element_dofs
         self._nv_dofs = vbasis.N
-        ni, nj = vbasis.Nbfun, ubasis.Nbfun
+        (nu, nq, nj), (nv, ni) = self._ref_u.shape, (self._ref_v.shape[0], self._ref_v.shape[2])
+        self._sizes = (nv, nu, nq)
         self.shape = (self.nelems, ni, nj)
         self.rows = np.broadcast_to(vbasis.element_dofs.T[:, :, None], self.shape).ravel()
         self.cols = np.broadcast_to(ubasis.element_dofs.T[:, None, :], self.shape).ravel()
-
-    @property
-    def jets(self) -> np.ndarray:
-        """Ξ_u, the trial basis' jets (elements, points, jet, function): to share with another form."""
-        return self._xi_u
+        # per pair of components: (kernel rows (a, b, q), Bᵀ, element-matrix columns (i, j))
+        self._pairs = []
+        for sv, fv in _components(self._ref_v):
+            for su, fu in _components(self._ref_u):
+                rows = ((sv[:, None, None] * nu + su[None, :, None]) * nq + np.arange(nq)).ravel()
+                B = np.einsum("aqi,bqj->ijabq", self._ref_v[sv][:, :, fv], self._ref_u[su][:, :, fu])
+                self._pairs.append((rows, np.ascontiguousarray(B.reshape(len(fv) * len(fu), -1).T),
+                                    (fv[:, None] * nj + fu[None, :]).ravel()))
+        self._jets_u = np.ascontiguousarray(self._ref_u.reshape(nu * nq, nj))  # ξ̂ = this @ u_e
+        self._test_v = np.ascontiguousarray(self._ref_v.reshape(nv * nq, ni).T)  # Ξ̂ᵀ, applied to a kernel's y
+        self._scratch: np.ndarray | None = None
 
     def _chunks(self):
         for e0 in range(0, self.nelems, self.chunk):
             yield slice(e0, min(e0 + self.chunk, self.nelems))
 
     def kernel(self, terms: list[Term], cut: slice = slice(None)) -> np.ndarray:
-        """Σ scale · K (elements, points, test jet, trial jet) of the terms on elements ``cut``, times dx."""
-        x = self.x[:, cut]
+        """Σ scale · K̂ · dx of the terms on elements ``cut``: (test jet, trial jet, point, element).
+
+        The forms are evaluated with points before elements (their fields are
+        passed transposed, a copy per chunk), so every product of a unit jet
+        and a field runs along the elements.  The array is a buffer of the
+        form, overwritten by the next call.
+        """
+        uv, ug = self._unit_u
+        vv, vg = self._unit_v
+        u, v = _field(uv, ug[..., cut]), _field(vv, vg[..., cut])
         total = None
         for scale, form, fields in terms:
-            params = FormExtraParams({k: np.asarray(a)[..., cut, :] if np.ndim(a) >= 2 else a
-                                      for k, a in fields.items()}, x=x)
-            K = form.form(self._unit_u, self._unit_v, params)
-            total = scale * K if total is None else total + scale * K
-        nv, nu = self._unit_v.shape[-4], self._unit_u.shape[-3]
-        total = np.broadcast_to(total, (nv, nu, *x.shape[1:]))
-        return np.moveaxis(total, (0, 1), (2, 3)) * self.dx[cut, :, None, None]
+            params = FormExtraParams({k: np.ascontiguousarray(np.swapaxes(np.asarray(a)[..., cut, :], -1, -2))
+                                      if np.ndim(a) >= 2 else a for k, a in fields.items()}, x=self._x[..., cut])
+            K = scale * form.form(u, v, params)
+            if total is None:
+                total = K
+            elif total.shape == np.broadcast_shapes(total.shape, K.shape):
+                total += K  # K is this call's own array
+            else:
+                total = total + K
+        nv, nu, nq = self._sizes
+        ne = len(range(*cut.indices(self.nelems)))
+        if self._scratch is None or self._scratch.size < nv * nu * nq * ne:
+            self._scratch = np.empty(nv * nu * nq * min(self.chunk, self.nelems))
+        out = self._scratch[: nv * nu * nq * ne].reshape(nv, nu, nq, ne)
+        return np.multiply(total, self._dx[:, cut], out=out)
 
     def data(self, terms: list[Term], out: np.ndarray | None = None) -> np.ndarray:
-        """Element matrices Σ_q Ξ_vᵀ K Ξ_u of the sum of ``terms``, flattened as :attr:`rows`.
+        """Element matrices Σ_q Ξ̂ᵀ K̂ Ξ̂ of the sum of ``terms``, flattened as :attr:`rows`.
 
         ``out`` (of :attr:`shape`) is written and returned when given: a caller
         that assembles every step keeps one, so a large mesh does not pay
         fresh pages for a new array each time.
         """
-        out = np.empty(self.shape) if out is None else out
+        ne, ni, nj = self.shape
+        out = (np.empty(self.shape) if out is None else out).reshape(ne, ni * nj)
         for cut in self._chunks():
-            Y = self.kernel(terms, cut) @ self._xi_u[cut]  # (e, q, test jet, j)
-            ne, nq, nv, nj = Y.shape
-            Xv = self._xi_v[cut].reshape(ne, nq * nv, -1)
-            out[cut] = Xv.transpose(0, 2, 1) @ Y.reshape(ne, nq * nv, nj)
+            K = self.kernel(terms, cut)
+            K = K.reshape(-1, K.shape[-1])
+            for rows, Bt, ij in self._pairs:
+                out[cut, ij] = K[rows].T @ Bt  # (element, ij): K's transpose is read in place by the product
         return out.ravel()
 
     def apply(self, terms: list[Term], u: np.ndarray) -> np.ndarray:
         """A u for the matrix A of the sum of ``terms``, without forming A (a test-space vector)."""
+        nv, nu, nq = self._sizes
+        ue = u[self._udofs]
         local = np.empty(self._vdofs.shape)
         for cut in self._chunks():
-            xi = np.einsum("eqmj,je->eqm", self._xi_u[cut], u[self._udofs[:, cut]])
-            y = np.einsum("eqnm,eqm->eqn", self.kernel(terms, cut), xi)
-            local[:, cut] = np.einsum("eqni,eqn->ie", self._xi_v[cut], y)
+            xi = (self._jets_u @ ue[:, cut]).reshape(nu, nq, -1)  # ξ̂ of u (trial jet, point, element)
+            y = np.einsum("abqe,bqe->aqe", self.kernel(terms, cut), xi)
+            local[:, cut] = self._test_v @ y.reshape(nv * nq, -1)
         return np.bincount(self._vdofs.ravel(), weights=local.ravel(), minlength=self._nv_dofs)
 
     def trial_jets(self, u: np.ndarray, values_only: bool = False) -> np.ndarray:
@@ -175,13 +244,24 @@ class BatchedForm:
 
         With ``values_only`` only the value components (the first rows of a jet).
         """
-        xi = self._xi_u[:, :, : int(np.prod(self._vshape, dtype=int))] if values_only else self._xi_u
-        return np.einsum("eqmj,je->meq", xi, u[self._udofs])
+        nu, nq, nj = self._ref_u.shape
+        nval = int(np.prod(self._vshape, dtype=int))
+        m = nval if values_only else nu
+        ref = (self._jets_u[: m * nq] @ u[self._udofs]).reshape(m, nq, self.nelems)
+        out = np.empty((m, self.nelems, nq))
+        out[:nval] = ref[:nval].transpose(0, 2, 1)
+        if not values_only:
+            dim = self._inverse.shape[0]
+            rg = ref[nval:].reshape(nval, dim, nq, self.nelems)
+            grad = out[nval:].reshape(nval, dim, self.nelems, nq)
+            for k in range(dim):  # ∂_k = Σ_i (DF⁻¹)_ik ∂̂_i
+                grad[:, k] = sum(self._inverse[i, k][:, None] * rg[:, i].transpose(0, 2, 1) for i in range(dim))
+        return out
 
     def field(self, u: np.ndarray) -> Field:
         """The trial-space function with DOFs ``u`` as a form argument (values, ``.grad``) at the quadrature points.
 
-        The same numbers as ``ubasis.interpolate(u)``, from the jets stacked at setup.
+        The same numbers as ``ubasis.interpolate(u)``, from the reference jets.
         """
         jet = self.trial_jets(u)
         nv = int(np.prod(self._vshape, dtype=int))

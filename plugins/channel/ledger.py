@@ -1,8 +1,8 @@
 """Quadratures of the fluid's energy identity: kinetic energy, viscous dissipation, end fluxes.
 
 The terms are evaluated at the quadrature points of the assembly, from the
-basis jets :class:`multilayer.assembly.batched.BatchedForm` stacked at setup
-(one contraction per field, no second pass of scikit-fem interpolation and
+reference jets of :class:`multilayer.assembly.batched.BatchedForm` (one
+matrix product per field, no second pass of scikit-fem interpolation and
 functional assembly), with the integrands of :mod:`multilayer_plugins.channel.forms`.
 They do not use the assembled matrix: each kinetic energy is weighted by the
 J of the domain it belongs to (ηⁿ, η^{n+1}), not by the step's J_m, so the
@@ -34,7 +34,7 @@ def end_fluxes(channel: Channel, fields: ALEFields, u: np.ndarray) -> tuple[floa
 
 
 class Quadrature:
-    """The identity's integrals on the velocity space's quadrature, from the assembly's basis jets.
+    """The identity's integrals on the velocity space's quadrature, from the assembly's reference jets.
 
     Parameters
     ----------

@@ -145,7 +145,7 @@ class FluidStep:
         ub, pb = channel.velocity, channel.pressure
         nu, n = channel.nu, channel.ndofs
         self._uu = BatchedForm(ub)
-        self._pu = BatchedForm(ub, pb, jets_u=self._uu.jets)
+        self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
         self.pattern = Pattern((n, n), [uu, pu, pu[::-1]])
         # the data array of a step: velocity block, divergence rows, and their negated transpose
@@ -182,7 +182,7 @@ class FluidStep:
 
     # -- assembly -------------------------------------------------------------
     # The forms of a step fall in three parts (docs/performance.md, "Assembly"):
-    # constant for the run (the basis jets, the sparsity pattern and its slots,
+    # constant for the run (the reference jets, the sparsity pattern and its slots,
     # the end-load vectors: built in __init__), geometry-only (mass_J, viscous,
     # pressure_divergence: they depend on η alone) and state (moving_domain on
     # the domain velocity, advection_skew on uⁿ − w).  The geometry part is
