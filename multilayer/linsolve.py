@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from multilayer.krylov import Workspace, preconditioned_gmres
 from multilayer.ordering import nested_dissection, pattern_key
 
 
@@ -245,7 +246,9 @@ class Reuse:
     max_iterations : int
         GMRES iterations above which the preconditioner is refactorized: a
         solve that needs more is redone with a fresh factorization of its own
-        matrix, which then preconditions the following steps.
+        matrix, which then preconditions the following steps; a solve that
+        needed all of them is followed by a fresh factorization at once (the
+        drift only grows, so the next solve would fail after paying for them).
     tolerance : float
         Relative residual ‖b − A x‖₂ ≤ tolerance · ‖b‖₂ a Krylov solve must
         reach (checked on the true residual).  The default 1e-12 keeps every
@@ -277,6 +280,8 @@ class ReusingSolver:
     linearly (:meth:`_guess`); when
     that does not reach the tolerance within ``max_iterations`` the matrix is
     factorized and solved directly, and its factorization is held instead.
+    After a solve that took all ``max_iterations``, the next new matrix is
+    factorized without trying GMRES first.
     A matrix solved again right after (the same ``key``: the sub-iterations of
     an implicit partitioned coupler) is factorized at its second solve, so
     its further solves are back-substitutions.
@@ -310,12 +315,15 @@ class ReusingSolver:
         self._last_key = None
         self._factors: Factorized | None = None
         self._solutions: deque[np.ndarray] = deque(maxlen=2)  # of the latest new matrices, newest last
+        self._exhausted = False
+        self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
 
     def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
         """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves."""
         self._factors = factorize(A, self.stats, self.backend)
         self._matrix = A if key is None else key
         self._shape = A.shape
+        self._exhausted = False
         return self._factors
 
     def holds(self, key) -> bool:
@@ -339,13 +347,13 @@ class ReusingSolver:
             self._solutions.clear()
         x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
-        if self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape:
-            from multilayer.krylov import preconditioned_gmres
-
+        if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
+                and not self._exhausted):
             t0 = time.perf_counter()
             x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
-                                                 self.reuse.max_iterations, self._guess())
+                                                 self.reuse.max_iterations, self._guess(), self._workspace)
             self.stats.krylov_iterations += iterations
+            self._exhausted = iterations >= self.reuse.max_iterations
             self.stats.krylov_s += time.perf_counter() - t0
             if x is not None:
                 self.stats.krylov_solves += 1

@@ -56,6 +56,27 @@ def test_refactorizes_past_the_bound_and_none_factorizes_every_matrix():
     assert none.factorizations == len(far) and none.krylov_solves == 0 and none.solves == 2 * len(far)
 
 
+def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_refactorizes_next():
+    """No back-substitution beyond one per GMRES iteration; after a solve that took all max_iterations, the next
+    matrix is factorized without trying GMRES (it would fail after paying for them: the drift only grows)."""
+    stats = SolverStats()
+    solver = ReusingSolver(stats, "superlu", Reuse("krylov", 4, 1e-12))
+    b = np.ones(400)
+    log = []
+    for A in drifting_matrices(drift=0.01, steps=12):
+        before = (stats.krylov_iterations, stats.factorizations, stats.solves)
+        x = solver.solve(A, b)
+        assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
+        log.append(tuple(after - b4 for after, b4 in zip((stats.krylov_iterations, stats.factorizations,
+                                                           stats.solves), before)))
+    for (its, factorizations, solves), following in zip(log, log[1:]):
+        if factorizations == 0:
+            assert solves == its  # a Krylov solve: its back-substitutions are its iterations
+            if its == 4:
+                assert following == (0, 1, 1)  # factorized at once, one direct solve
+    assert sum(1 for its, f, _ in log[:-1] if f == 0 and its == 4) >= 2, log  # the rule was exercised
+
+
 def test_reuse_is_validated():
     with pytest.raises(ValueError, match="reuse mode"):
         Reuse("sometimes")
