@@ -62,6 +62,13 @@ def test_batched_assembly_equals_scikit_fem(order):
             assert abs(A - B).max() <= 1e-13 * abs(B).max(), form.form.__name__
             Ax = batched.apply([(1.0, form, w)], x)
             assert np.allclose(Ax, B @ x, rtol=0, atol=1e-13 * abs(B).max() * np.abs(x).sum())
+    # the jets of a function at the points are scikit-fem's interpolation, on all elements or a chunk of them
+    batched = BatchedForm(ch.velocity, chunk=5)
+    ref = ch.velocity.interpolate(x)
+    for cut in (slice(None), slice(5, 10)):
+        field = batched.field(x, cut)
+        assert np.allclose(field, np.asarray(ref)[:, cut], rtol=0, atol=1e-14 * np.abs(x).max())
+        assert np.allclose(field.grad, np.asarray(ref.grad)[:, :, cut], rtol=0, atol=1e-13 * np.abs(x).max())
     # a sum of terms is the sum of their matrices, in one contraction
     batched = BatchedForm(ch.velocity, chunk=7)
     terms = [(c, form, w) for c, (form, bases, w) in zip((2.0, -0.5, 3.0, 1.5), cases[:4])]

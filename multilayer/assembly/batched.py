@@ -176,10 +176,14 @@ class BatchedForm:
                 self._pairs.append((rows, np.ascontiguousarray(B.reshape(len(fv) * len(fu), -1).T),
                                     (fv[:, None] * nj + fu[None, :]).ravel()))
         self._jets_u = np.ascontiguousarray(self._ref_u.reshape(nu * nq, nj))  # ξ̂ = this @ u_e
+        self._rows_u = np.ascontiguousarray(self._ref_u.transpose(0, 2, 1))  # jet row s at the points: u_e @ this[s]
+        self._udofs_t = np.ascontiguousarray(self._udofs.T)  # (element, j)
+        self._gathered = np.empty(self._udofs_t.shape)
         self._test_v = np.ascontiguousarray(self._ref_v.reshape(nv * nq, ni).T)  # Ξ̂ᵀ, applied to a kernel's y
         self._scratch: np.ndarray | None = None
 
-    def _chunks(self):
+    def chunks(self):
+        """Slices of at most :attr:`chunk` elements covering the mesh."""
         for e0 in range(0, self.nelems, self.chunk):
             yield slice(e0, min(e0 + self.chunk, self.nelems))
 
@@ -221,7 +225,7 @@ class BatchedForm:
         """
         ne, ni, nj = self.shape
         out = (np.empty(self.shape) if out is None else out).reshape(ne, ni * nj)
-        for cut in self._chunks():
+        for cut in self.chunks():
             K = self.kernel(terms, cut)
             K = K.reshape(-1, K.shape[-1])
             for rows, Bt, ij in self._pairs:
@@ -233,36 +237,45 @@ class BatchedForm:
         nv, nu, nq = self._sizes
         ue = u[self._udofs]
         local = np.empty(self._vdofs.shape)
-        for cut in self._chunks():
+        for cut in self.chunks():
             xi = (self._jets_u @ ue[:, cut]).reshape(nu, nq, -1)  # ξ̂ of u (trial jet, point, element)
             y = np.einsum("abqe,bqe->aqe", self.kernel(terms, cut), xi)
             local[:, cut] = self._test_v @ y.reshape(nv * nq, -1)
         return np.bincount(self._vdofs.ravel(), weights=local.ravel(), minlength=self._nv_dofs)
 
-    def trial_jets(self, u: np.ndarray, values_only: bool = False) -> np.ndarray:
-        """The jets of the trial-space function with DOFs ``u`` at every quadrature point: (jet, elements, points).
+    def trial_jets(self, u: np.ndarray, values_only: bool = False, cut: slice = slice(None)) -> np.ndarray:
+        """The jets of the trial-space function with DOFs ``u`` at the quadrature points: (jet, elements, points).
 
-        With ``values_only`` only the value components (the first rows of a jet).
+        With ``values_only`` only the value components (the first rows of a
+        jet); with ``cut`` only those elements.  Each jet row is one matrix
+        product u_e Ξ̂ᵀ written in place (no array of all the reference jets),
+        and the derivatives are then mapped by DF_e⁻¹ in place.
         """
         nu, nq, nj = self._ref_u.shape
         nval = int(np.prod(self._vshape, dtype=int))
         m = nval if values_only else nu
-        ref = (self._jets_u[: m * nq] @ u[self._udofs]).reshape(m, nq, self.nelems)
-        out = np.empty((m, self.nelems, nq))
-        out[:nval] = ref[:nval].transpose(0, 2, 1)
+        ue = self._udofs_t[cut]
+        ue = np.take(u, ue, out=self._gathered[: len(ue)])  # u_e of every element: a buffer of the form
+        out = np.empty((m, len(ue), nq))
+        for slot in range(m):
+            np.matmul(ue, self._rows_u[slot], out=out[slot])
         if not values_only:
             dim = self._inverse.shape[0]
-            rg = ref[nval:].reshape(nval, dim, nq, self.nelems)
-            grad = out[nval:].reshape(nval, dim, self.nelems, nq)
-            for k in range(dim):  # ∂_k = Σ_i (DF⁻¹)_ik ∂̂_i
-                grad[:, k] = sum(self._inverse[i, k][:, None] * rg[:, i].transpose(0, 2, 1) for i in range(dim))
+            inverse = self._inverse[:, :, cut, None]
+            grad = out[nval:].reshape(nval, dim, len(ue), nq)
+            reference = np.empty((dim, len(ue), nq))
+            for c in range(nval):  # ∂_k = Σ_i (DF⁻¹)_ik ∂̂_i
+                reference[...] = grad[c]
+                np.multiply(inverse[0, :], reference[0], out=grad[c])
+                for i in range(1, dim):
+                    grad[c] += inverse[i, :] * reference[i]
         return out
 
-    def field(self, u: np.ndarray) -> Field:
+    def field(self, u: np.ndarray, cut: slice = slice(None)) -> Field:
         """The trial-space function with DOFs ``u`` as a form argument (values, ``.grad``) at the quadrature points.
 
-        The same numbers as ``ubasis.interpolate(u)``, from the reference jets.
+        The same numbers as ``ubasis.interpolate(u)`` (on elements ``cut``), from the reference jets.
         """
-        jet = self.trial_jets(u)
+        jet = self.trial_jets(u, cut=cut)
         nv = int(np.prod(self._vshape, dtype=int))
         return _field(jet[:nv].reshape(*self._vshape, *jet.shape[1:]), jet[nv:].reshape(*self._gshape, *jet.shape[1:]))

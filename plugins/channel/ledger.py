@@ -60,6 +60,15 @@ class Quadrature:
         return 0.5 * self.density * float(np.sum(self.form.dx * J * (v[0] * v[0] + v[1] * v[1])))
 
     def strain_squared(self, u: np.ndarray, fields: ALEFields) -> float:
-        """∫ J |D^η(u)|² (the integrand :data:`forms.strain_squared`)."""
-        w = FormExtraParams({"u": self.form.field(u), **fields.forms_kwargs()})
-        return float(np.sum(self.form.dx * forms.strain_squared.form(w)))
+        """∫ J |D^η(u)|² (the integrand :data:`forms.strain_squared`), chunk by chunk of elements.
+
+        Per chunk, so the jets and the integrand's intermediate arrays stay
+        small: on a large mesh whole-mesh arrays are fresh pages every step.
+        """
+        kw = fields.forms_kwargs()
+        total = 0.0
+        for cut in self.form.chunks():
+            w = FormExtraParams({"u": self.form.field(u, cut),
+                                 **{k: np.asarray(a)[..., cut, :] if np.ndim(a) >= 2 else a for k, a in kw.items()}})
+            total += float(np.sum(self.form.dx[cut] * forms.strain_squared.form(w)))
+        return total
