@@ -255,7 +255,7 @@ class BatchedForm:
         nval = int(np.prod(self._vshape, dtype=int))
         m = nval if values_only else nu
         ue = self._udofs_t[cut]
-        ue = np.take(u, ue, out=self._gathered[: len(ue)])  # u_e of every element: a buffer of the form
+        ue = np.take(u, ue, out=self._gathered[: len(ue)], mode="clip")  # u_e: a buffer of the form ('clip': unbuffered)
         out = np.empty((m, len(ue), nq))
         for slot in range(m):
             np.matmul(ue, self._rows_u[slot], out=out[slot])

@@ -3,7 +3,7 @@
 The A2 matrix changes every step but its nonzero structure does not.  The
 pattern is built once from the (row, column) lists of every term; after
 that a step only computes values and sums them into the CSR data array
-(:class:`Filler`, one ``bincount``) — no sorting, no duplicate summation,
+(:class:`Filler`, one ``np.add.at`` into a kept array) — no sorting, no duplicate summation,
 no new index arrays.  Sub-matrices (the free/fixed blocks of a Dirichlet elimination)
 are index maps into the same data array.  A fixed pattern is also what
 lets a solver backend keep its symbolic analysis (PARDISO) or its
@@ -87,14 +87,20 @@ class Block:
         and the matrix shares it: a caller that takes the block every step
         keeps one buffer instead of a fresh array (and its page faults) each time.
         """
-        values = data[self.take] if out is None else np.take(data, self.take, out=out)
+        # mode='clip' (the slots are valid by construction): with the default 'raise' numpy buffers ``out``, a
+        # fresh array as large as the block every step
+        values = data[self.take] if out is None else np.take(data, self.take, out=out, mode="clip")
         return sp.csr_matrix((values, self.indices, self.indptr), shape=self.shape)
 
 
 class Filler:
     """Sums the values of a step's terms into a pattern's data array, at slots concatenated once.
 
-    One ``bincount``: no sorting, no duplicate summation, no index arrays built per step.
+    One unbuffered ``np.add.at`` into a data array kept for the run (the sums
+    are ``bincount``'s, in the same order): no sorting, no duplicate
+    summation, no index arrays built per step, and no fresh array — on a
+    large mesh a new data array each step costs its page faults.  The
+    returned array is the filler's own and is overwritten by its next call.
 
     >>> p = Pattern((2, 2), [(np.array([0, 1]), np.array([0, 1]))])
     >>> fill = p.filler([p.slots(np.array([0, 1]), np.array([0, 1])), p.slots(np.array([0]), np.array([0]))],
@@ -109,6 +115,7 @@ class Filler:
         self.scales = [1.0] * len(slots) if scales is None else [float(c) for c in scales]
         self.slots = np.concatenate(slots)
         self._values = np.empty(self.slots.size)  # reused: a fresh array this size costs page faults every step
+        self._data = np.empty(nnz)
         self._cuts = np.cumsum([0, *self.sizes])
 
     def __call__(self, *values: np.ndarray) -> np.ndarray:
@@ -116,4 +123,6 @@ class Filler:
             raise ValueError(f"values of sizes {[np.size(v) for v in values]}, the slots are {self.sizes}")
         for v, c, a, b in zip(values, self.scales, self._cuts[:-1], self._cuts[1:]):
             np.multiply(np.ravel(v), c, out=self._values[a:b])
-        return np.bincount(self.slots, weights=self._values, minlength=self.nnz)
+        self._data.fill(0.0)
+        np.add.at(self._data, self.slots, self._values)
+        return self._data

@@ -76,9 +76,10 @@ class FluidSystem:
     ``matrix`` and ``rhs`` hold the fluid's own equations plus the coupler's
     interface terms; ``own`` is the data without the interface terms (for the
     wall reaction).  ``fixed`` are the Dirichlet DOFs with values ``fixed_values``.
-    With interface terms ``data`` is a buffer the step keeps for the run: it
-    holds this system's matrix until the next :meth:`FluidStep.system`, so a
-    system is solved in the step that assembles it (every coupler does).
+    ``data`` and ``own`` are buffers the step keeps for the run (the
+    pattern's filler's, and a copy with the interface terms): they hold this
+    system's matrix until the next :meth:`FluidStep.system`, so a system is
+    solved in the step that assembles it (every coupler does).
     """
 
     data: np.ndarray
@@ -315,7 +316,7 @@ class FluidStep:
         if self.constant_matrix:
             key = (system.scheme.inertia * self.density / system.dt,)
             if key not in self._constant:
-                self._constant[key] = (system.own, factorize(self._block_ff.matrix(system.data), self.stats,
+                self._constant[key] = (system.own.copy(), factorize(self._block_ff.matrix(system.data), self.stats,
                                                              self.solver))
             x[self.free] = self._constant[key][1].solve(rhs)
         else:
