@@ -159,6 +159,10 @@ class BatchedForm:
         self._vshape, self._gshape = np.shape(f)[:-2], np.shape(f.grad)[:-2]
         self._unit_u = _unit_jets(ubasis, self._inverse, trial=True)
         self._unit_v = _unit_jets(vbasis, self._inverse, trial=False)
+        dim = self._inverse.shape[0]
+        mix = np.random.default_rng(1).uniform(-1.5, 1.5, (dim, dim)) + 2.0 * np.eye(dim)  # a full map, invertible
+        self._probe = (_unit_jets(ubasis, mix[..., None], trial=True), _unit_jets(vbasis, mix[..., None], trial=False))
+        self._active: dict = {}  # (form, kind of fields) → its active (test, trial) slots
         self._udofs = ubasis.element_dofs
         self._vdofs = vbasis.element_dofs
         self._nv_dofs = vbasis.N
@@ -187,34 +191,67 @@ class BatchedForm:
         for e0 in range(0, self.nelems, self.chunk):
             yield slice(e0, min(e0 + self.chunk, self.nelems))
 
+    def active(self, form, fields: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The (test, trial) jet slots on which ``form``'s kernel is not identically zero.
+
+        Probed once per form and kind of fields: the form is called on one
+        point set with every field (and the coordinates) replaced by random
+        positive values and the unit jets mapped by a random full matrix, so
+        a slot counts as active wherever some mesh and some fields could use
+        it.  A mass term then costs its value slots (2 × 2 of the velocity's
+        6 × 6), a viscous term its derivative slots.
+        """
+        key = (form, tuple(sorted((k, np.shape(a)[:-2] if np.ndim(a) >= 2 else None) for k, a in fields.items())))
+        slots = self._active.get(key)
+        if slots is None:
+            rng = np.random.default_rng(0)
+            nv, nu, nq = self._sizes
+            probe = {k: 0.5 + rng.random((*np.shape(a)[:-2], nq, 1)) if np.ndim(a) >= 2
+                     else (0.5 + rng.random() if isinstance(a, (int, float, np.number)) else a)
+                     for k, a in fields.items()}
+            (uv, ug), (vv, vg) = self._probe
+            x = 0.5 + rng.random((self._x.shape[0], nq, 1))
+            K = np.broadcast_to(form.form(_field(uv, ug), _field(vv, vg), FormExtraParams(probe, x=x)), (nv, nu, nq, 1))
+            used = np.abs(K).max(axis=(2, 3)) > 0.0
+            slots = self._active[key] = (np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0)))
+        return slots
+
     def kernel(self, terms: list[Term], cut: slice = slice(None)) -> np.ndarray:
         """Σ scale · K̂ · dx of the terms on elements ``cut``: (test jet, trial jet, point, element).
 
-        The forms are evaluated with points before elements (their fields are
-        passed transposed, a copy per chunk), so every product of a unit jet
-        and a field runs along the elements.  The array is a buffer of the
-        form, overwritten by the next call.
+        Each form is called on the unit jets of its :meth:`active` slots only
+        and added into its block of the kernel.  The forms are evaluated with
+        points before elements (their fields are passed transposed, a copy per
+        chunk), so every product of a unit jet and a field runs along the
+        elements.  The array is a buffer of the form, overwritten by the next
+        call.
         """
-        uv, ug = self._unit_u
-        vv, vg = self._unit_v
-        u, v = _field(uv, ug[..., cut]), _field(vv, vg[..., cut])
-        total = None
-        for scale, form, fields in terms:
-            params = FormExtraParams({k: np.ascontiguousarray(np.swapaxes(np.asarray(a)[..., cut, :], -1, -2))
-                                      if np.ndim(a) >= 2 else a for k, a in fields.items()}, x=self._x[..., cut])
-            K = scale * form.form(u, v, params)
-            if total is None:
-                total = K
-            elif total.shape == np.broadcast_shapes(total.shape, K.shape):
-                total += K  # K is this call's own array
-            else:
-                total = total + K
         nv, nu, nq = self._sizes
         ne = len(range(*cut.indices(self.nelems)))
         if self._scratch is None or self._scratch.size < nv * nu * nq * ne:
             self._scratch = np.empty(nv * nu * nq * min(self.chunk, self.nelems))
-        out = self._scratch[: nv * nu * nq * ne].reshape(nv, nu, nq, ne)
-        return np.multiply(total, self._dx[:, cut], out=out)
+        total = self._scratch[: nv * nu * nq * ne].reshape(nv, nu, nq, ne)
+        total.fill(0.0)
+        uv, ug = self._unit_u
+        vv, vg = self._unit_v
+        for scale, form, fields in terms:
+            rows, cols = self.active(form, fields)
+            if not (rows.size and cols.size):
+                continue
+            whole = rows.size == nv and cols.size == nu
+            u = _field(uv, ug[..., cut]) if cols.size == nu else _field(uv[..., cols, :, :], ug[..., cols, :, cut])
+            v = _field(vv, vg[..., cut]) if rows.size == nv else _field(vv[..., rows, :, :, :],
+                                                                        vg[..., rows, :, :, cut])
+            params = FormExtraParams({k: np.ascontiguousarray(np.swapaxes(np.asarray(a)[..., cut, :], -1, -2))
+                                      if np.ndim(a) >= 2 else a for k, a in fields.items()}, x=self._x[..., cut])
+            K = scale * form.form(u, v, params)
+            if whole:
+                total += K
+            else:
+                block = np.ix_(rows, cols)
+                total[block] += K
+        total *= self._dx[:, cut]
+        return total
 
     def data(self, terms: list[Term], out: np.ndarray | None = None) -> np.ndarray:
         """Element matrices Σ_q Ξ̂ᵀ K̂ Ξ̂ of the sum of ``terms``, flattened as :attr:`rows`.
