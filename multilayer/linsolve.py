@@ -319,7 +319,11 @@ class ReusingSolver:
         self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
 
     def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
-        """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves."""
+        """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves.
+
+        The factors held until now are let go first: the two never live together.
+        """
+        self._factors = self._matrix = None  # a large mesh's factors are most of its memory
         self._factors = factorize(A, self.stats, self.backend)
         self._matrix = A if key is None else key
         self._shape = A.shape

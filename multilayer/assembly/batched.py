@@ -17,7 +17,8 @@ reference jets Ξ̂ of the local basis are the same on every element, so
     A_e = Σ_q dx_q Ξ̂_qᵀ K̂_q,e Ξ̂_q,        K̂ = T_eᵀ K T_e,
 
 and K̂ is what the form returns when called on unit *reference* jets mapped
-by T_e.  The element matrices of a chunk of elements are then one matrix
+by T_e — on the slots the form can use only (:meth:`BatchedForm.active`:
+a mass term's kernel is 2 × 2 of the velocity's 6 × 6).  The element matrices of a chunk of elements are then one matrix
 product, B K̂ with B_(ij),(ab q) = Ξ̂_q,ai Ξ̂_q,bj stacked at setup — per pair
 of vector components, since a component's jets only meet its own functions.
 No array of the basis jets of every element is kept: a mesh is held as its
