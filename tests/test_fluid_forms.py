@@ -3,6 +3,7 @@
 import doctest
 
 import numpy as np
+import skfem
 import pytest
 import scipy.sparse as sp
 from skfem import asm
@@ -75,6 +76,15 @@ def test_batched_assembly_equals_scikit_fem(order):
     A = sp.coo_matrix((batched.data(terms), (batched.rows, batched.cols))).tocsr()
     B = sum(c * asm(form, ch.velocity, **w) for c, form, w in terms)
     assert abs(A - B).max() <= 1e-13 * abs(B).max()
+
+
+def test_batched_assembly_refuses_a_mesh_that_is_not_affine():
+    mesh = skfem.MeshQuad().refined(1)
+    p = mesh.p.copy()
+    p[:, np.argmin(np.hypot(*(p - 0.5)))] += (0.2, 0.1)  # the middle node moved: four quadrilaterals, none a parallelogram
+    mesh = skfem.MeshQuad(p, mesh.t)
+    with pytest.raises(ValueError, match="affine"):
+        BatchedForm(skfem.Basis(mesh, skfem.ElementQuad1()))
 
 
 def test_advection_is_skew_and_the_rest_symmetric():

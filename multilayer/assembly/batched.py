@@ -150,8 +150,8 @@ class BatchedForm:
         self.nelems = ubasis.nelems
         self.chunk = chunk
         self.dx = ubasis.dx
-        self.x = np.asarray(ubasis.global_coordinates())
-        self._x = np.ascontiguousarray(np.swapaxes(self.x, -1, -2))  # (dim, point, element), as the kernel takes it
+        # the coordinates of the points, (dim, point, element): as the kernel passes fields to a form
+        self._x = np.ascontiguousarray(np.swapaxes(np.asarray(ubasis.global_coordinates()), -1, -2))
         self._dx = np.ascontiguousarray(self.dx.T)
         self._inverse = affine_inverse(ubasis)
         self._ref_u = reference_jets(ubasis, self._inverse)  # (trial jet, point, j)
