@@ -416,7 +416,7 @@ def test_the_memory_check_weighs_the_case_against_this_machine(tmp_path, capsys,
     path = write_case(tmp_path, None)
     monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e9)
     assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 2
-    assert ("mesh.nz = 20000: the case needs about 4.4 GB of memory (4e+05 unknowns: wall 4e+05), "
+    assert ("mesh.nz = 20000: the case needs about 4.6 GB of memory (4e+05 unknowns: wall 4e+05), "
             "this machine has 1 GB available") in capsys.readouterr().err
     monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e12)
     assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
