@@ -338,7 +338,7 @@ class ReusingSolver:
         """x with A x = b: directly when the factors are A's, else by GMRES on the held ones or a fresh LU.
 
         ``key`` stands for A when A is rebuilt from data that did not change
-        (e.g. the data array it is a block of); by default A itself.
+        (e.g. the token of the system it is a block of); by default A itself.
         """
         key = A if key is None else key
         if self.stats.refactorize:  # as a run resumed here starts: no factors, no earlier solutions

@@ -87,7 +87,7 @@ class Monolithic(Coupler):
             x = np.zeros(n)
             x[fixed_f] = values_f
             rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
-            x[layout.free] = solver.solve(layout.free_free.matrix(data, out=layout.free_values), rhs)
+            x[layout.free] = solver.solve(layout.free_free.matrix(data, keep=True), rhs)
             # each part takes back its share of the solution
             solution = fluid.advance(system, x[: fluid.ndofs])
             w = structure.finish(history, x[glob], forces)
@@ -116,7 +116,6 @@ class Layout:
         self.fixed = np.unique(fixed)
         self.free = np.setdiff1d(np.arange(n), self.fixed)
         self.free_free = self.pattern.block(self.free, self.free)
-        self.free_values = np.empty(len(self.free_free.take))  # the step's free block, kept for the run
         self.free_fixed = self.pattern.block(self.free, self.fixed)
 
     def fits(self, A_f: sp.csr_matrix) -> bool:

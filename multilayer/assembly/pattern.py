@@ -79,18 +79,24 @@ class Block:
 
     def __init__(self, indices: np.ndarray, indptr: np.ndarray, take: np.ndarray, shape: tuple[int, int]):
         self.indices, self.indptr, self.take, self.shape = indices, indptr, take, shape
+        self._values: np.ndarray | None = None  # the kept values of ``matrix(..., keep=True)``
 
-    def matrix(self, data: np.ndarray, out: np.ndarray | None = None) -> sp.csr_matrix:
+    def matrix(self, data: np.ndarray, keep: bool = False) -> sp.csr_matrix:
         """The block of the parent matrix whose CSR data is ``data``.
 
-        With ``out`` (of ``len(take)``) the block's values are gathered into it
-        and the matrix shares it: a caller that takes the block every step
-        keeps one buffer instead of a fresh array (and its page faults) each time.
+        With ``keep`` the block's values are gathered into an array the block
+        keeps, which the matrix shares and the next ``keep`` call overwrites: a
+        caller that takes the block every step pays no fresh array (and its
+        page faults) each time.
         """
+        if not keep:
+            return sp.csr_matrix((data[self.take], self.indices, self.indptr), shape=self.shape)
+        if self._values is None:
+            self._values = np.empty(len(self.take))
         # mode='clip' (the slots are valid by construction): with the default 'raise' numpy buffers ``out``, a
         # fresh array as large as the block every step
-        values = data[self.take] if out is None else np.take(data, self.take, out=out, mode="clip")
-        return sp.csr_matrix((values, self.indices, self.indptr), shape=self.shape)
+        np.take(data, self.take, out=self._values, mode="clip")
+        return sp.csr_matrix((self._values, self.indices, self.indptr), shape=self.shape)
 
 
 class Filler:

@@ -171,10 +171,9 @@ class FluidStep:
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
         self._interface_slots: tuple | None = None
         self._buffers: tuple[np.ndarray, np.ndarray] | None = None
-        # the data with the interface terms and the free block's values: kept for the run, so only the latest
-        # system's matrix is valid — every coupler solves a system in the step that assembles it
+        # the data with the interface terms (and the free block's values, kept by the block): kept for the run,
+        # so only the latest system's matrix is valid — every coupler solves a system in the step that assembles it
         self._with_interface: np.ndarray | None = None
-        self._free_values: np.ndarray | None = None
 
     @property
     def constant_matrix(self) -> bool:
@@ -320,9 +319,7 @@ class FluidStep:
                                                              self.solver))
             x[self.free] = self._constant[key][1].solve(rhs)
         else:
-            if self._free_values is None:
-                self._free_values = np.empty(len(self._block_ff.take))
-            A = self._block_ff.matrix(system.data, out=self._free_values)
+            A = self._block_ff.matrix(system.data, keep=True)
             x[self.free] = self._solver.solve(A, rhs, key=system.token)
         return self.advance(system, x)
 
