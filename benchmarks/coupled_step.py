@@ -62,19 +62,20 @@ def counters(setup: Setup) -> dict[str, float]:
     return out
 
 
-def fresh_factorizations_s(setup: Setup) -> dict[str, float]:
+def fresh_factorizations_s(setup: Setup, colamd: bool = True) -> dict[str, float]:
     """Seconds of fresh factorizations of the fluid's latest matrix ({} before there is one).
 
     ``fresh``: by the run's own backend instance, on the ordering it keeps for
-    the pattern (what a refactorizing step pays); ``colamd``: SuperLU with its
-    COLAMD ordering (``superlu-colamd``, what every step paid before).
+    the pattern (what a refactorizing step pays); ``colamd`` (unless not
+    asked for): SuperLU with its COLAMD ordering (``superlu-colamd``, what
+    every step paid before).  ``benchmarks/scaling.py`` times the same two.
     """
     A = getattr(setup.fluid.discrete, "last_matrix", None) if setup.fluid is not None else None
     if A is None:
         return {}
     out = {}
     for name, stats, backend in (("fresh", SolverStats(backends=setup.fluid.stats.backends), setup.case.solver),
-                                 ("colamd", SolverStats(), "superlu-colamd")):
+                                 *([("colamd", SolverStats(), "superlu-colamd")] if colamd else [])):
         t0 = time.perf_counter()
         factorize(A, stats, backend)
         out[name] = time.perf_counter() - t0

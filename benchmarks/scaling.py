@@ -47,7 +47,7 @@ COLAMD_LIMIT = 400_000
 def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = False) -> dict:
     """Run ``steps`` steps on ``mesh`` in this process; the row to print."""
     from multilayer.casefile import load_case
-    from multilayer.linsolve import SolverStats, factorize
+    from coupled_step import fresh_factorizations_s  # this script's folder: the fresh factorizations of both
     from multilayer.registry import Registry
     from multilayer.setup import Setup
     from multilayer.threads import blas_threads
@@ -61,7 +61,6 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = Fals
         state = setup.coupler.initial_state(setup)
         build_s = time.perf_counter() - t0
         run = setup.coupler.evolve(setup, state)
-        fluid = setup.fluid
         samples = []
         for _ in range(steps):
             before = {**_counters(setup), **_kernel()}
@@ -70,18 +69,11 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = Fals
             samples.append({"step": time.perf_counter() - t0,
                             **{k: v - before[k] for k, v in {**_counters(setup), **_kernel()}.items()}})
         peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # the run's, before the extras
-        fresh_s = colamd_s = None
-        A = fluid.discrete.last_matrix
-        if fresh and A is not None:
-            # the run's own backend instance: a numeric factorization on the ordering the run already has
-            t0 = time.perf_counter()
-            factorize(A, SolverStats(backends=fluid.stats.backends), case.solver)
-            fresh_s = time.perf_counter() - t0
-            n_fluid = setup.dof_counts().get("fluid", 0)
-            if colamd and n_fluid <= COLAMD_LIMIT:  # the factorization before the ordering was kept
-                t0 = time.perf_counter()
-                factorize(A, SolverStats(), "superlu-colamd")
-                colamd_s = time.perf_counter() - t0
+        # the run's own backend instance (a numeric factorization on the ordering the run already has) and,
+        # below the limit, the factorization before the ordering was kept
+        colamd = colamd and setup.dof_counts().get("fluid", 0) <= COLAMD_LIMIT
+        times = fresh_factorizations_s(setup, colamd) if fresh else {}
+        fresh_s, colamd_s = times.get("fresh"), times.get("colamd")
     warm = samples[1:] or samples
     dofs = setup.dof_counts()
     n = dofs.get("fluid", 0) + dofs.get("wall", 0)
