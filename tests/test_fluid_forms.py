@@ -15,7 +15,7 @@ import multilayer_plugins.channel.model
 import multilayer.assembly.pattern
 from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.ale import ALEFields
-from multilayer.assembly.batched import BatchedForm
+from multilayer.assembly.batched import BatchedForm, SkewPart
 from multilayer_plugins.channel.channel import Channel
 
 
@@ -51,16 +51,18 @@ def test_batched_assembly_equals_scikit_fem(order):
         (forms.viscous, (ch.velocity,), kw),
         (forms.moving_domain, (ch.velocity,), {"dJdt": f.dJdt}),
         (forms.advection_skew, (ch.velocity,), dict(kw, a=a)),
+        (SkewPart(forms.advection), (ch.velocity,), dict(kw, a=a)),  # what the step assembles: advection_skew's
+        (forms.advection, (ch.velocity,), dict(kw, a=a)),
         (forms.pressure_divergence, (ch.velocity, ch.pressure), kw),
     ]
     x = np.random.default_rng(0).standard_normal(ch.velocity.N)
     for form, bases, w in cases:
         shape = (bases[-1].N, bases[0].N)
-        B = asm(form, *bases, **w)
+        B = asm(forms.advection_skew if isinstance(form, SkewPart) else form, *bases, **w)
         for chunk in (5, 1024):  # chunks that split the 24 elements unevenly, and one chunk of all
             batched = BatchedForm(*bases, chunk=chunk)
             A = sp.coo_matrix((batched.data([(1.0, form, w)]), (batched.rows, batched.cols)), shape=shape).tocsr()
-            assert abs(A - B).max() <= 1e-13 * abs(B).max(), form.form.__name__
+            assert abs(A - B).max() <= 1e-13 * abs(B).max(), form
             Ax = batched.apply([(1.0, form, w)], x)
             assert np.allclose(Ax, B @ x, rtol=0, atol=1e-13 * abs(B).max() * np.abs(x).sum())
     # the jets of a function at the points are scikit-fem's interpolation, on all elements or a chunk of them
@@ -70,12 +72,17 @@ def test_batched_assembly_equals_scikit_fem(order):
         field = batched.field(x, cut)
         assert np.allclose(field, np.asarray(ref)[:, cut], rtol=0, atol=1e-14 * np.abs(x).max())
         assert np.allclose(field.grad, np.asarray(ref.grad)[:, :, cut], rtol=0, atol=1e-13 * np.abs(x).max())
-    # a sum of terms is the sum of their matrices, in one contraction
+    # a sum of terms is the sum of their matrices, in one contraction (and its product with a vector)
     batched = BatchedForm(ch.velocity, chunk=7)
-    terms = [(c, form, w) for c, (form, bases, w) in zip((2.0, -0.5, 3.0, 1.5), cases[:4])]
+    terms = [(c, form, w) for c, (form, bases, w) in zip((2.0, -0.5, 3.0, 1.5, -1.0), cases[:5])]
     A = sp.coo_matrix((batched.data(terms), (batched.rows, batched.cols))).tocsr()
-    B = sum(c * asm(form, ch.velocity, **w) for c, form, w in terms)
+    B = sum(c * asm(forms.advection_skew if isinstance(form, SkewPart) else form, ch.velocity, **w)
+            for c, form, w in terms)
     assert abs(A - B).max() <= 1e-13 * abs(B).max()
+    assert np.allclose(batched.apply(terms, x), B @ x, rtol=0, atol=1e-13 * abs(B).max() * np.abs(x).sum())
+    # the skew part of a form needs one space for both arguments
+    with pytest.raises(ValueError, match="one space"):
+        BatchedForm(ch.velocity, ch.pressure).data([(1.0, SkewPart(forms.pressure_divergence), kw)])
 
 
 def test_batched_assembly_refuses_a_mesh_that_is_not_affine():

@@ -17,13 +17,17 @@ reference jets Ξ̂ of the local basis are the same on every element, so
     A_e = Σ_q dx_q Ξ̂_qᵀ K̂_q,e Ξ̂_q,        K̂ = T_eᵀ K T_e,
 
 and K̂ is what the form returns when called on unit *reference* jets mapped
-by T_e — on the slots the form can use only (:meth:`BatchedForm.active`:
-a mass term's kernel is 2 × 2 of the velocity's 6 × 6).  The element matrices of a chunk of elements are then one matrix
-product, B K̂ with B_(ij),(ab q) = Ξ̂_q,ai Ξ̂_q,bj stacked at setup — per pair
-of vector components, since a component's jets only meet its own functions.
-No array of the basis jets of every element is kept: a mesh is held as its
-maps DF_e⁻¹ (4 numbers an element) and the weights dx.  The form functions
-of :mod:`multilayer_plugins.channel.forms` are used unchanged (they also run
+by T_e — on the pairs of slots the form can use only
+(:meth:`BatchedForm.active`: a mass term's kernel is 2 × 2 of the
+velocity's 6 × 6).  The element matrices of a chunk of elements are then
+one matrix product, B K̂ with B_(ij),(ab q) = Ξ̂_q,ai Ξ̂_q,bj stacked once —
+per pair of vector components, since a component's jets only meet its own
+functions, and over the pairs of slots (a, b) some term uses.  The skew
+part ½(c(u, v) − c(v, u)) of a form (:class:`SkewPart`) is ½(K − Kᵀ) with
+K the form's kernel, which is evaluated once.  No array of the basis jets
+of every element is kept: a mesh is held as its maps DF_e⁻¹ (4 numbers an
+element) and the weights dx.  The form functions of
+:mod:`multilayer_plugins.channel.forms` are used unchanged (they also run
 under ``skfem.asm``; a test checks that both give the same matrices).
 
 A sum of terms is assembled chunk by chunk of elements: the kernels of all
@@ -123,6 +127,35 @@ def _unit_jets(basis: skfem.CellBasis, inverse: np.ndarray, trial: bool) -> tupl
     return value[..., :, None, :, :], grad[..., :, None, :, :]
 
 
+def _add(total: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarray) -> None:
+    """total[rows, cols] += K, in place (positions along the first two axes; a run of positions as a view)."""
+    r, c = _run(rows), _run(cols)
+    if isinstance(r, slice) or isinstance(c, slice):
+        total[r, c] += K  # at most one index array: it selects along its own axis
+    else:
+        total[np.ix_(r, c)] += K
+
+
+def _run(positions: np.ndarray):
+    """Sorted ``positions`` as a slice when they are consecutive (a view, not a copy), else as they are."""
+    if len(positions) and positions[-1] - positions[0] == len(positions) - 1:
+        return slice(int(positions[0]), int(positions[-1]) + 1)
+    return positions
+
+
+class SkewPart:
+    """½(form(u, v) − form(v, u)): the skew-symmetric part of a bilinear form on one space, as a term's form.
+
+    Its kernel is ½(K − Kᵀ), K the form's with the transpose swapping test and
+    trial jet slots, so :class:`BatchedForm` evaluates the form once on its
+    active slots: the skew advection of the fluid step costs the convective
+    form's 2 × 4 of the velocity's 6 × 6 slots.
+    """
+
+    def __init__(self, form):
+        self.form = form
+
+
 class BatchedForm:
     """Assemble sums of bilinear forms on (trial ``ubasis``, test ``vbasis``) through their reference kernels.
 
@@ -130,7 +163,8 @@ class BatchedForm:
     fields)`` chunk by chunk of elements, sums them and contracts the sum
     with the reference jets: one matrix product per pair of components for
     any number of terms.  The element matrices are flattened in the order of
-    :attr:`rows` and :attr:`cols` (element e, test i, trial j).  Both bases
+    :attr:`rows` and :attr:`cols` (test i, trial j, element e: an entry's
+    values over a chunk of elements are written in one piece).  Both bases
     must live on one affine mesh with one quadrature.
 
     >>> from skfem import BilinearForm, ElementTriP2, ElementVector, MeshTri, asm
@@ -169,22 +203,16 @@ class BatchedForm:
         self._nv_dofs = vbasis.N
         (nu, nq, nj), (nv, ni) = self._ref_u.shape, (self._ref_v.shape[0], self._ref_v.shape[2])
         self._sizes = (nv, nu, nq)
-        self.shape = (self.nelems, ni, nj)
-        self.rows = np.broadcast_to(vbasis.element_dofs.T[:, :, None], self.shape).ravel()
-        self.cols = np.broadcast_to(ubasis.element_dofs.T[:, None, :], self.shape).ravel()
-        # per pair of components: (kernel rows (a, b, q), Bᵀ, element-matrix columns (i, j))
-        self._pairs = []
-        for sv, fv in _components(self._ref_v):
-            for su, fu in _components(self._ref_u):
-                rows = ((sv[:, None, None] * nu + su[None, :, None]) * nq + np.arange(nq)).ravel()
-                B = np.einsum("aqi,bqj->ijabq", self._ref_v[sv][:, :, fv], self._ref_u[su][:, :, fu])
-                self._pairs.append((rows, np.ascontiguousarray(B.reshape(len(fv) * len(fu), -1).T),
-                                    (fv[:, None] * nj + fu[None, :]).ravel()))
-        self._jets_u = np.ascontiguousarray(self._ref_u.reshape(nu * nq, nj))  # ξ̂ = this @ u_e
+        self._same_space = vbasis is ubasis
+        self.shape = (ni, nj, self.nelems)
+        # element e's matrix entry (i, j) at [i, j, e]: a chunk's entries (i, j) are one contiguous run
+        self.rows = np.broadcast_to(vbasis.element_dofs[:, None, :], self.shape).ravel()
+        self.cols = np.broadcast_to(ubasis.element_dofs[None, :, :], self.shape).ravel()
+        self._components = (_components(self._ref_v), _components(self._ref_u))
+        self._plans: dict = {}  # the contraction of a union of active slots (see _plan)
         self._rows_u = np.ascontiguousarray(self._ref_u.transpose(0, 2, 1))  # jet row s at the points: u_e @ this[s]
         self._udofs_t = np.ascontiguousarray(self._udofs.T)  # (element, j)
         self._gathered = np.empty(self._udofs_t.shape)
-        self._test_v = np.ascontiguousarray(self._ref_v.reshape(nv * nq, ni).T)  # Ξ̂ᵀ, applied to a kernel's y
         self._scratch: np.ndarray | None = None
 
     def chunks(self):
@@ -192,19 +220,24 @@ class BatchedForm:
         for e0 in range(0, self.nelems, self.chunk):
             yield slice(e0, min(e0 + self.chunk, self.nelems))
 
-    def active(self, form, fields: dict) -> tuple[np.ndarray, np.ndarray]:
-        """The (test, trial) jet slots on which ``form``'s kernel is not identically zero.
+    def active(self, form, fields: dict) -> np.ndarray:
+        """Which (test, trial) pairs of jet slots ``form``'s kernel can use: a boolean (test slot, trial slot) array.
 
         Probed once per form and kind of fields: the form is called on one
         point set with every field (and the coordinates) replaced by random
         positive values and the unit jets mapped by a random full matrix, so
-        a slot counts as active wherever some mesh and some fields could use
+        a pair counts as active wherever some mesh and some fields could use
         it.  A mass term then costs its value slots (2 × 2 of the velocity's
-        6 × 6), a viscous term its derivative slots.
+        6 × 6), a viscous term its derivative slots.  A :class:`SkewPart`
+        uses its form's pairs and their transposes.
         """
+        form, skew = self._unwrap(form)
+        if skew:
+            used = self.active(form, fields)
+            return used | used.T
         key = (form, tuple(sorted((k, np.shape(a)[:-2] if np.ndim(a) >= 2 else None) for k, a in fields.items())))
-        slots = self._active.get(key)
-        if slots is None:
+        used = self._active.get(key)
+        if used is None:
             rng = np.random.default_rng(0)
             nv, nu, nq = self._sizes
             probe = {k: 0.5 + rng.random((*np.shape(a)[:-2], nq, 1)) if np.ndim(a) >= 2
@@ -213,44 +246,101 @@ class BatchedForm:
             (uv, ug), (vv, vg) = self._probe
             x = 0.5 + rng.random((self._x.shape[0], nq, 1))
             K = np.broadcast_to(form.form(_field(uv, ug), _field(vv, vg), FormExtraParams(probe, x=x)), (nv, nu, nq, 1))
-            used = np.abs(K).max(axis=(2, 3)) > 0.0
-            slots = self._active[key] = (np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0)))
-        return slots
+            used = self._active[key] = np.abs(K).max(axis=(2, 3)) > 0.0
+        return used
 
-    def kernel(self, terms: list[Term], cut: slice = slice(None)) -> np.ndarray:
+    def _unwrap(self, form) -> tuple:
+        """(the form to evaluate, whether its skew part is wanted); a ValueError for a skew part across two spaces."""
+        if not isinstance(form, SkewPart):
+            return form, False
+        if not self._same_space:
+            raise ValueError("a SkewPart needs one space for the test and trial functions")
+        return form.form, True
+
+    def _plan(self, terms: list[Term]) -> tuple:
+        """How the kernel of ``terms`` is laid out and contracted, made once per union of active pairs.
+
+        The kernel is kept on the test slots R and trial slots C some term
+        uses, (R, C, point, element).  Per pair of vector components the
+        contraction takes only the (test, trial) pairs some term uses: B with
+        B_(ij),(p q) = Ξ̂_q,a_p,i Ξ̂_q,b_p,j over the active pairs p = (a_p, b_p)
+        — the velocity's cross-component pairs meet through derivatives only
+        (4 of 9), the divergence's pressure test function through its value.
+        Also the element-matrix entries no pair reaches (zero), and the
+        restricted reference jets :meth:`apply` multiplies with.
+        """
+        nv, nu, nq = self._sizes
+        used = np.zeros((nv, nu), dtype=bool)
+        for _, form, fields in terms:
+            used |= self.active(form, fields)
+        key = used.tobytes()
+        plan = self._plans.get(key)
+        if plan is None:
+            R, C = np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0))
+            ni, nj = self.shape[:2]
+            pairs = []
+            for sv, fv in self._components[0]:
+                for su, fu in self._components[1]:
+                    a, b = np.nonzero(used[np.ix_(sv, su)])
+                    if not a.size:
+                        continue
+                    a, b = sv[a], su[b]
+                    rows = ((np.searchsorted(R, a) * len(C) + np.searchsorted(C, b))[:, None] * nq + np.arange(nq))
+                    B = np.einsum("pqi,pqj->ijpq", self._ref_v[a][:, :, fv], self._ref_u[b][:, :, fu])
+                    pairs.append((rows.ravel(), np.ascontiguousarray(B.reshape(len(fv) * len(fu), -1)),
+                                  (fv[:, None] * nj + fu[None, :]).ravel()))
+            zero = np.setdiff1d(np.arange(ni * nj), np.concatenate([ij for *_, ij in pairs] or [[]]))
+            jets_u = np.ascontiguousarray(self._ref_u[C].reshape(len(C) * nq, nj))  # ξ̂ on C = this @ u_e
+            test_v = np.ascontiguousarray(self._ref_v[R].reshape(len(R) * nq, ni).T)  # Ξ̂ᵀ on R, applied to y
+            plan = self._plans[key] = (R, C, pairs, zero, jets_u, test_v)
+        return plan
+
+    def kernel(self, terms: list[Term], cut: slice = slice(None), slots: tuple | None = None) -> np.ndarray:
         """Σ scale · K̂ · dx of the terms on elements ``cut``: (test jet, trial jet, point, element).
 
-        Each form is called on the unit jets of its :meth:`active` slots only
-        and added into its block of the kernel.  The forms are evaluated with
-        points before elements (their fields are passed transposed, a copy per
-        chunk), so every product of a unit jet and a field runs along the
+        On the test and trial slots ``slots`` = (R, C) (sorted; by default
+        every slot), which must hold every active slot of the terms.  Each form
+        is called on the unit jets of its :meth:`active` slots only and added
+        into its block of the kernel; a :class:`SkewPart` is evaluated once and
+        added as ½(K − Kᵀ).  The forms are evaluated with points before
+        elements (their fields are passed transposed, a copy per chunk and
+        field), so every product of a unit jet and a field runs along the
         elements.  The array is a buffer of the form, overwritten by the next
         call.
         """
         nv, nu, nq = self._sizes
+        R, C = (np.arange(nv), np.arange(nu)) if slots is None else slots
         ne = len(range(*cut.indices(self.nelems)))
-        if self._scratch is None or self._scratch.size < nv * nu * nq * ne:
+        size = len(R) * len(C) * nq * ne
+        if self._scratch is None or self._scratch.size < size:
             self._scratch = np.empty(nv * nu * nq * min(self.chunk, self.nelems))
-        total = self._scratch[: nv * nu * nq * ne].reshape(nv, nu, nq, ne)
+        total = self._scratch[:size].reshape(len(R), len(C), nq, ne)
         total.fill(0.0)
         uv, ug = self._unit_u
         vv, vg = self._unit_v
+        local: dict[int, np.ndarray] = {}  # a field's values on the chunk, points first: once per field
+
+        def on_chunk(a):
+            if id(a) not in local:
+                local[id(a)] = np.ascontiguousarray(np.swapaxes(np.asarray(a)[..., cut, :], -1, -2))
+            return local[id(a)]
+
         for scale, form, fields in terms:
-            rows, cols = self.active(form, fields)
+            form, skew = self._unwrap(form)
+            used = self.active(form, fields)
+            rows, cols = np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0))
             if not (rows.size and cols.size):
                 continue
-            whole = rows.size == nv and cols.size == nu
             u = _field(uv, ug[..., cut]) if cols.size == nu else _field(uv[..., cols, :, :], ug[..., cols, :, cut])
             v = _field(vv, vg[..., cut]) if rows.size == nv else _field(vv[..., rows, :, :, :],
                                                                         vg[..., rows, :, :, cut])
-            params = FormExtraParams({k: np.ascontiguousarray(np.swapaxes(np.asarray(a)[..., cut, :], -1, -2))
-                                      if np.ndim(a) >= 2 else a for k, a in fields.items()}, x=self._x[..., cut])
-            K = scale * form.form(u, v, params)
-            if whole:
-                total += K
-            else:
-                block = np.ix_(rows, cols)
-                total[block] += K
+            params = FormExtraParams({k: on_chunk(a) if np.ndim(a) >= 2 else a for k, a in fields.items()},
+                                     x=self._x[..., cut])
+            K = np.broadcast_to((0.5 * scale if skew else scale) * form.form(u, v, params),
+                                (rows.size, cols.size, nq, ne))
+            _add(total, np.searchsorted(R, rows), np.searchsorted(C, cols), K)
+            if skew:  # −½ Kᵀ: the form with its arguments swapped
+                _add(total, np.searchsorted(R, cols), np.searchsorted(C, rows), -K.swapaxes(0, 1))
         total *= self._dx[:, cut]
         return total
 
@@ -261,24 +351,27 @@ class BatchedForm:
         that assembles every step keeps one, so a large mesh does not pay
         fresh pages for a new array each time.
         """
-        ne, ni, nj = self.shape
-        out = (np.empty(self.shape) if out is None else out).reshape(ne, ni * nj)
+        ni, nj, ne = self.shape
+        out = (np.empty(self.shape) if out is None else out).reshape(ni * nj, ne)
+        R, C, pairs, zero, _, _ = self._plan(terms)
+        out[zero] = 0.0  # the entries of component pairs no term couples (a mass term's u_z, u_r)
         for cut in self.chunks():
-            K = self.kernel(terms, cut)
+            K = self.kernel(terms, cut, (R, C))
             K = K.reshape(-1, K.shape[-1])
-            for rows, Bt, ij in self._pairs:
-                out[cut, ij] = K[rows].T @ Bt  # (element, ij): K's transpose is read in place by the product
+            for rows, B, ij in pairs:
+                out[ij, cut] = B @ K[rows]  # (ij, element): each entry's run over the chunk written in one piece
         return out.ravel()
 
     def apply(self, terms: list[Term], u: np.ndarray) -> np.ndarray:
         """A u for the matrix A of the sum of ``terms``, without forming A (a test-space vector)."""
-        nv, nu, nq = self._sizes
+        nq = self._sizes[2]
+        R, C, _, _, jets_u, test_v = self._plan(terms)
         ue = u[self._udofs]
         local = np.empty(self._vdofs.shape)
         for cut in self.chunks():
-            xi = (self._jets_u @ ue[:, cut]).reshape(nu, nq, -1)  # ξ̂ of u (trial jet, point, element)
-            y = np.einsum("abqe,bqe->aqe", self.kernel(terms, cut), xi)
-            local[:, cut] = self._test_v @ y.reshape(nv * nq, -1)
+            xi = (jets_u @ ue[:, cut]).reshape(len(C), nq, -1)  # ξ̂ of u on the trial slots C
+            y = np.einsum("abqe,bqe->aqe", self.kernel(terms, cut, (R, C)), xi)
+            local[:, cut] = test_v @ y.reshape(len(R) * nq, -1)
         return np.bincount(self._vdofs.ravel(), weights=local.ravel(), minlength=self._nv_dofs)
 
     def trial_jets(self, u: np.ndarray, values_only: bool = False, cut: slice = slice(None)) -> np.ndarray:

@@ -102,11 +102,13 @@ class Block:
 class Filler:
     """Sums the values of a step's terms into a pattern's data array, at slots concatenated once.
 
-    One unbuffered ``np.add.at`` into a data array kept for the run (the sums
-    are ``bincount``'s, in the same order): no sorting, no duplicate
-    summation, no index arrays built per step, and no fresh array — on a
-    large mesh a new data array each step costs its page faults.  The
-    returned array is the filler's own and is overwritten by its next call.
+    Unbuffered ``np.add.at`` (``np.subtract.at`` for a scale of −1) of each
+    term's values into a data array kept for the run: the sums are
+    ``bincount``'s over the concatenated slots, in the same order; no sorting,
+    no duplicate summation, no index arrays built per step, and no fresh
+    array — on a large mesh a new data array each step costs its page
+    faults.  Values scaled by ±1 are summed as they are (no scaled copy).
+    The returned array is the filler's own and is overwritten by its next call.
 
     >>> p = Pattern((2, 2), [(np.array([0, 1]), np.array([0, 1]))])
     >>> fill = p.filler([p.slots(np.array([0, 1]), np.array([0, 1])), p.slots(np.array([0]), np.array([0]))],
@@ -120,15 +122,20 @@ class Filler:
         self.sizes = [len(s) for s in slots]
         self.scales = [1.0] * len(slots) if scales is None else [float(c) for c in scales]
         self.slots = np.concatenate(slots)
-        self._values = np.empty(self.slots.size)  # reused: a fresh array this size costs page faults every step
-        self._data = np.empty(nnz)
         self._cuts = np.cumsum([0, *self.sizes])
+        self._scaled = np.empty(max([n for n, c in zip(self.sizes, self.scales) if abs(c) != 1.0], default=0))
+        self._data = np.empty(nnz)
 
     def __call__(self, *values: np.ndarray) -> np.ndarray:
         if [np.size(v) for v in values] != self.sizes:
             raise ValueError(f"values of sizes {[np.size(v) for v in values]}, the slots are {self.sizes}")
-        for v, c, a, b in zip(values, self.scales, self._cuts[:-1], self._cuts[1:]):
-            np.multiply(np.ravel(v), c, out=self._values[a:b])
         self._data.fill(0.0)
-        np.add.at(self._data, self.slots, self._values)
+        for v, c, a, b in zip(values, self.scales, self._cuts[:-1], self._cuts[1:]):
+            v, slots = np.ravel(v), self.slots[a:b]
+            if c == 1.0:
+                np.add.at(self._data, slots, v)
+            elif c == -1.0:  # data − v is data + (−v) to the bit
+                np.subtract.at(self._data, slots, v)
+            else:
+                np.add.at(self._data, slots, np.multiply(v, c, out=self._scaled[: b - a]))
         return self._data

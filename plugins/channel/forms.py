@@ -62,13 +62,23 @@ def mass_J(u, q, w):
 
 
 @BilinearForm
+def advection(u, q, w):
+    """∫ J ((a·∇^η)u)·q, a = uⁿ − w: the convective form, whose skew-symmetric part the step assembles.
+
+    The step hands :class:`~multilayer.assembly.batched.SkewPart` of this form
+    to the batched assembly, which evaluates it once on its 2 × 4 active jet
+    slots and adds ½(K − Kᵀ): the kernel of ``advection_skew``.
+    """
+    return dot(w.J * transport(w.a, grad_eta(u, w)), q)
+
+
+@BilinearForm
 def advection_skew(u, q, w):
-    """∫ J [½((a·∇^η)u)·q − ½((a·∇^η)q)·u], a = uⁿ − w  (× ρ_f).
+    """∫ J [½((a·∇^η)u)·q − ½((a·∇^η)q)·u], a = uⁿ − w  (× ρ_f): ½(advection(u, q) − advection(q, u)).
 
     Skew-symmetric: it vanishes for q = u, which is what makes the ledger close.
     """
-    half_J = 0.5 * w.J
-    return dot(half_J * transport(w.a, grad_eta(u, w)), q) - dot(half_J * transport(w.a, grad_eta(q, w)), u)
+    return 0.5 * (advection.form(u, q, w) - advection.form(q, u, w))
 
 
 @BilinearForm

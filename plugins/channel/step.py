@@ -40,7 +40,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.assembly.batched import BatchedForm
+from multilayer.assembly.batched import BatchedForm, SkewPart
 from multilayer.assembly.pattern import Pattern
 from multilayer.interfaces import Domain, Interface
 from multilayer.linsolve import Factorized, Reuse, ReusingSolver, SolverStats, factorize
@@ -185,7 +185,8 @@ class FluidStep:
     # constant for the run (the reference jets, the sparsity pattern and its slots,
     # the end-load vectors: built in __init__), geometry-only (mass_J, viscous,
     # pressure_divergence: they depend on η alone) and state (moving_domain on
-    # the domain velocity, advection_skew on uⁿ − w).  The geometry part is
+    # the domain velocity, advection_skew on uⁿ − w, assembled as SkewPart(advection):
+    # the convective kernel once, then ½(K − Kᵀ)).  The geometry part is
     # kept where η never changes (a rigid wall); on a moving wall it changes
     # every step and is assembled with the state part in one pass.
     def _geometry_terms(self, fields: ALEFields, mass_coefficient: float) -> list:
@@ -197,7 +198,7 @@ class FluidStep:
         if np.any(fields.dJdt):
             terms.append((self.density, forms.moving_domain, {"dJdt": fields.dJdt}))
         if a is not None:
-            terms.append((self.density, forms.advection_skew, dict(fields.forms_kwargs(), a=a)))
+            terms.append((self.density, SkewPart(forms.advection), dict(fields.forms_kwargs(), a=a)))
         return terms
 
     def _element_data(self, fields: ALEFields, mass_coefficient: float, a: np.ndarray | None):
