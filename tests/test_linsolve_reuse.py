@@ -63,7 +63,7 @@ def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_r
     solver = ReusingSolver(stats, "superlu", Reuse("krylov", 4, 1e-12))
     b = np.ones(400)
     log = []
-    for A in drifting_matrices(drift=0.01, steps=12):
+    for A in drifting_matrices(drift=0.01, steps=20):
         before = (stats.krylov_iterations, stats.factorizations, stats.solves)
         x = solver.solve(A, b)
         assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
@@ -113,8 +113,8 @@ def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
 
 
 def test_the_extrapolated_guess_saves_iterations_and_changes_no_answer(monkeypatch):
-    """Matrices and right-hand sides drifting smoothly: GMRES started from 2xⁿ − x^{n−1} gains fewer orders
-    than from M⁻¹b, and both reach the tolerance (the answers agree to it)."""
+    """Matrices and right-hand sides drifting smoothly: GMRES started from the extrapolated solutions gains fewer
+    orders than from M⁻¹b, and both reach the tolerance (the answers agree to it)."""
     mats = drifting_matrices(steps=10, drift=1e-3)
     rng = np.random.default_rng(5)
     b0, db = rng.standard_normal(400), rng.standard_normal(400)
@@ -133,3 +133,18 @@ def test_the_extrapolated_guess_saves_iterations_and_changes_no_answer(monkeypat
         assert stats.factorizations == 1
     assert iterations["guess"] < iterations["no guess"]
     assert np.max(np.abs(answers["guess"] - answers["no guess"])) <= 1e-10 * np.max(np.abs(answers["guess"]))
+
+
+def test_the_guess_is_the_polynomial_through_the_last_solutions():
+    """Constant after one solution, linear after two, quadratic after three or more (the oldest dropped): the
+    next value of solutions that are such polynomials of the step."""
+    rng = np.random.default_rng(2)
+    c0, c1, c2 = rng.standard_normal((3, 50))
+    solver = ReusingSolver(SolverStats(), "superlu", Reuse())
+    assert solver._guess() is None
+    for degree, steps in ((0, 1), (1, 2), (2, 4)):  # four solutions of a quadratic: the first is let go
+        f = [lambda t: c0, lambda t: c0 + c1 * t, lambda t: c0 + c1 * t + c2 * t * t][degree]
+        solver._solutions.clear()
+        for t in range(steps):
+            solver._solutions.append(f(t))
+        assert np.allclose(solver._guess(), f(steps), rtol=0, atol=1e-13 * np.abs(f(steps)).max()), degree
