@@ -38,7 +38,7 @@ from multilayer.formula import Formula, FormulaError
 from multilayer.formula_domain import Domain, defect
 from multilayer.interfaces import Layer
 from multilayer.layer_checks import abstract_problem, raised, type_problem
-from multilayer.linsolve import BACKENDS, REUSE_MODES, Reuse
+from multilayer.linsolve import BACKENDS, FACTORS, REUSE_MODES, SINGLE, Reuse
 from multilayer.loads import FormulaPressure, load_from_spec
 from multilayer.partial import NotBuilt, Unbuilt
 from multilayer.problems import MISSING, CaseError, Problem, check_params, did_you_mean
@@ -90,6 +90,9 @@ SOLVER = (
           doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
     Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
           doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
+    Param("factors", type=str, default=Reuse().factors, choices=FACTORS,
+          doc="precision of a changing matrix's factorizations: 'double', or 'single' (half their memory, "
+              "faster; every solve by GMRES on them to the same tolerance; SuperLU only)"),
     Param("threads", type=int, default=1, ge=0,
           doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
     Param("max_displacement", "", "R", default=0.5, gt=0.0,
@@ -368,10 +371,15 @@ class _Validator:
         parts["output"] = self.part("output", mark, lambda: output)
         mark = self.mark()
         solver = self.section(data, "solver", SOLVER)
+        if len(self.problems) == mark and solver["factors"] == "single" and solver["linear"] not in SINGLE:
+            self.problems.append(Problem("solver.factors", "single",
+                                         f"'double' with linear = {solver['linear']!r} (single-precision factors "
+                                         f"need linear = one of {list(SINGLE)})"))
         parts["solver"] = self.part("solver", mark, lambda: solver["linear"])
         parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
         parts["reuse"] = self.part("solver", mark,
-                                   lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"]))
+                                   lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"],
+                                                 solver["factors"]))
         parts["threads"] = self.part("solver", mark, lambda: solver["threads"])
         case = Case(**parts)
         self.add(self.objections(case))

@@ -114,6 +114,8 @@ def preconditioned_gmres(A: sp.spmatrix, b: np.ndarray, precondition: Callable[[
         h += again
         H[: j + 1, j] = h
         H[j + 1, j] = np.linalg.norm(w)
+        if not np.isfinite(H[j + 1, j]):  # a preconditioner that returned inf or nan: no answer from it
+            return None, j + 1
         if H[j + 1, j] > 0.0:
             np.divide(w, H[j + 1, j], out=V[j + 1])
         for i in range(j):  # the earlier rotations, on the new column

@@ -53,6 +53,9 @@ class SolverStats:
     krylov_s: float = 0.0
     #: iterative-refinement sweeps after direct solves (:meth:`ReusingSolver.solve`)
     refinements: int = 0
+    #: single-precision factorizations too inaccurate to converge from, replaced by double ones for the rest
+    #: of the run (``[solver] factors = "single"``)
+    fallbacks: int = 0
     #: set by the runner after a checkpoint: the system's next solve factorizes afresh, as the first solve of a
     #: run resumed from that checkpoint must, so the two runs stay bit-identical
     refactorize: bool = False
@@ -96,7 +99,7 @@ class _SuperLU:
     def __init__(self) -> None:
         self._orderings: dict[tuple, tuple] = {}
 
-    def __call__(self, A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
+    def __call__(self, A: sp.spmatrix, single: bool = False) -> Callable[[np.ndarray], np.ndarray]:
         if A.format not in ("csr", "csc"):
             A = sp.csc_matrix(A)
         key = pattern_key(A)  # (sorts A's indices in place)
@@ -106,14 +109,17 @@ class _SuperLU:
             while len(self._orderings) > self.keep:
                 self._orderings.pop(next(iter(self._orderings)))
         perm, take, indices, indptr = ordering
-        permuted = sp.csc_matrix((A.data[take], indices, indptr), shape=A.shape)
+        dtype = np.float32 if single else A.data.dtype
+        with np.errstate(over="ignore"):  # an entry beyond float32's range becomes inf: SuperLU finds it singular
+            data = A.data[take].astype(dtype, copy=False)
+        permuted = sp.csc_matrix((data, indices, indptr), shape=A.shape)
         lu = spla.splu(permuted, permc_spec="NATURAL", diag_pivot_thresh=self.PIVOT_THRESHOLD,
                        options={"SymmetricMode": True})
 
         def solve(b: np.ndarray) -> np.ndarray:
             b = np.asarray(b)
-            y = lu.solve(np.ascontiguousarray(b[perm]))
-            x = np.empty_like(y)
+            y = lu.solve(np.ascontiguousarray(b[perm], dtype=dtype))
+            x = np.empty(y.shape, dtype=np.result_type(b.dtype, np.float64))
             x[perm] = y
             return x
 
@@ -142,8 +148,13 @@ class _SuperLUColamd:
     (``--vary solver.linear=superlu,superlu-colamd``).
     """
 
-    def __call__(self, A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
-        return spla.splu(sp.csc_matrix(A), permc_spec="COLAMD").solve
+    def __call__(self, A: sp.spmatrix, single: bool = False) -> Callable[[np.ndarray], np.ndarray]:
+        if not single:
+            return spla.splu(sp.csc_matrix(A), permc_spec="COLAMD").solve
+        with np.errstate(over="ignore"):
+            A = sp.csc_matrix(A, dtype=np.float32)
+        lu = spla.splu(A, permc_spec="COLAMD")
+        return lambda b: lu.solve(np.asarray(b, dtype=np.float32)).astype(np.float64)
 
 
 def _pypardiso():
@@ -219,10 +230,19 @@ BACKENDS: dict[str, Callable[[], Backend]] = {
     "superlu-colamd": _SuperLUColamd,
     **{name: backend for name, (module, backend) in OPTIONAL.items() if importlib.util.find_spec(module)},
 }
+#: the backends that factorize in single precision too (``single=True``)
+SINGLE = ("superlu", "superlu-colamd")
+#: precisions of the factors a ReusingSolver preconditions with (``[solver] factors``)
+FACTORS = ("double", "single")
 
 
-def factorize(A: sp.spmatrix, stats: SolverStats, backend: str = "superlu") -> Factorized:
-    """Factorize ``A`` with ``backend``, counting it on ``stats``.
+def factorize(A: sp.spmatrix, stats: SolverStats, backend: str = "superlu", single: bool = False) -> Factorized:
+    """Factorize ``A`` with ``backend``, counting it on ``stats``; with ``single`` in float32.
+
+    Single-precision factors solve to ~1e-7 relative accuracy (times the
+    condition number): they serve as a preconditioner whose residuals are
+    taken in double precision (GMRES–IR, :class:`ReusingSolver`), not as a
+    direct solve.  Only the SuperLU backends have them.
 
     The backend instance is ``stats``'s own (made on its first use), so
     nothing a backend keeps is shared between the solvers of a run or
@@ -240,10 +260,12 @@ def factorize(A: sp.spmatrix, stats: SolverStats, backend: str = "superlu") -> F
             raise KeyError(f"linear solver {backend!r} is not installed (it needs {OPTIONAL[backend][0]}): "
                            f"pip install 'multilayer[fast]'; available: {sorted(BACKENDS)}")
         raise KeyError(f"unknown linear solver {backend!r}; available: {sorted(BACKENDS)}")
+    if single and backend not in SINGLE:
+        raise ValueError(f"single-precision factors need one of the linear solvers {list(SINGLE)}, not {backend!r}")
     t0 = time.perf_counter()
     if backend not in stats.backends:
         stats.backends[backend] = BACKENDS[backend]()
-    solve = stats.backends[backend](A)
+    solve = stats.backends[backend](A, single=True) if single else stats.backends[backend](A)
     stats.factorizations += 1
     stats.factorization_s += time.perf_counter() - t0
     return Factorized(solve, stats)
@@ -273,11 +295,20 @@ class Reuse:
         reach (checked on the true residual).  The default 1e-12 keeps every
         energy ledger within 1e-11 of round-off closure (docs/performance.md,
         "The tolerance").
+    factors : str
+        ``"double"``: factorizations in float64, and the matrix just
+        factorized solved directly; ``"single"``: in float32 (half their
+        memory, faster to make and to apply), every solve by GMRES on them
+        with residuals in float64 — the same tolerance, so the same answer
+        to it (GMRES–IR).  Where single-precision factors of a matrix are
+        too inaccurate for GMRES to converge from, that matrix is factorized
+        in double and the solver stays double (counted in ``fallbacks``).
     """
 
     mode: str = "krylov"
     max_iterations: int = 8
     tolerance: float = 1e-12
+    factors: str = "double"
 
     def __attrs_post_init__(self):
         if self.mode not in REUSE_MODES:
@@ -286,6 +317,8 @@ class Reuse:
             raise ValueError(f"max_iterations must be ≥ 1, got {self.max_iterations!r}")
         if not 0.0 < self.tolerance < 1.0:
             raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance!r}")
+        if self.factors not in FACTORS:
+            raise ValueError(f"factors {self.factors!r} is not one of {FACTORS}")
 
 
 class ReusingSolver:
@@ -295,10 +328,11 @@ class ReusingSolver:
     passed again as the same object reuses its own factorization).  With
     ``"krylov"`` a new matrix is solved by right-preconditioned GMRES with the
     held factorization (:func:`multilayer.krylov.preconditioned_gmres`),
-    started from the solutions of the two latest new matrices extrapolated
-    linearly (:meth:`_guess`); when
-    that does not reach the tolerance within ``max_iterations`` the matrix is
-    factorized and solved directly, and its factorization is held instead.
+    started from the solutions of the latest new matrices extrapolated
+    (:meth:`_guess`); when that does not reach the tolerance within
+    ``max_iterations`` the matrix is factorized and solved with its own
+    factors (directly; by GMRES on them when they are single precision), and
+    its factorization is held instead.
     After a solve that took all ``max_iterations``, the next new matrix is
     factorized without trying GMRES first.
     A matrix solved again right after (the same ``key``: the sub-iterations of
@@ -339,6 +373,7 @@ class ReusingSolver:
         self._solutions: deque[np.ndarray] = deque(maxlen=len(self.EXTRAPOLATION))  # of the latest new matrices, newest last
         self._exhausted = False
         self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
+        self._single = reuse.factors == "single"  # until a fallback
 
     def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
         """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves.
@@ -346,7 +381,13 @@ class ReusingSolver:
         The factors held until now are let go first: the two never live together.
         """
         self._factors = self._matrix = None  # a large mesh's factors are most of its memory
-        self._factors = factorize(A, self.stats, self.backend)
+        if self._single:
+            try:
+                self._factors = factorize(A, self.stats, self.backend, single=True)
+            except RuntimeError:  # singular in float32: an entry beyond its range, a pivot rounded to zero
+                self._fall_back()
+        if self._factors is None:
+            self._factors = factorize(A, self.stats, self.backend)
         self._matrix = A if key is None else key
         self._shape = A.shape
         self._exhausted = False
@@ -390,6 +431,11 @@ class ReusingSolver:
             self._solutions.append(x)
         return x
 
+    def _fall_back(self) -> None:
+        """From now on, double-precision factors (single ones did not serve: counted in ``fallbacks``)."""
+        self._single = False
+        self.stats.fallbacks += 1
+
     def _guess(self) -> np.ndarray | None:
         """The next solution extrapolated from the last (up to three) new matrices' (None before there are any).
 
@@ -407,13 +453,29 @@ class ReusingSolver:
         return guess
 
     def _refined(self, A: sp.spmatrix, b: np.ndarray) -> np.ndarray:
-        """The held factors' solution of A x = b, with iterative refinement until ‖b − A x‖ ≤ tolerance ‖b‖.
+        """The held factors' solution of A x = b, to ‖b − A x‖ ≤ tolerance ‖b‖.
 
-        A factorization with threshold pivoting (the SuperLU backend keeps small
-        diagonal pivots) may leave a residual above the tolerance; each
-        refinement sweep costs one product and one back-substitution, and is
-        counted in ``refinements``.  At most ``REFINEMENTS`` sweeps.
+        Double-precision factors: a direct solve, with iterative refinement
+        while the residual is above the tolerance (a factorization with
+        threshold pivoting — the SuperLU backend keeps small diagonal pivots —
+        may leave one); each sweep costs one product and one
+        back-substitution, and is counted in ``refinements``; at most
+        ``REFINEMENTS`` sweeps.  Single-precision factors: GMRES on them
+        (counted as a Krylov solve); where it does not converge within
+        ``max_iterations`` the matrix is factorized in double precision, and
+        the solver stays double (a ``fallback``).
         """
+        if self._single:
+            t0 = time.perf_counter()
+            x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
+                                                 self.reuse.max_iterations, None, self._workspace)
+            self.stats.krylov_iterations += iterations
+            self.stats.krylov_s += time.perf_counter() - t0
+            if x is not None:
+                self.stats.krylov_solves += 1
+                return x
+            self._fall_back()
+            self.factorize(A, self._matrix)
         x = self._factors.solve(b)
         target = self.reuse.tolerance * np.linalg.norm(b)
         for _ in range(self.REFINEMENTS):

@@ -353,8 +353,9 @@ def _factorizations(setup: Setup | None) -> dict[str, int]:
 
 
 def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
-    """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``), and the
-    iterative-refinement sweeps after direct solves where there were any."""
+    """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``, or
+    ``factors = "single"``), the iterative-refinement sweeps after direct solves and the fallbacks from
+    single- to double-precision factors where there were any."""
     if setup is None:
         return {}
     stats = dict(setup.solvers)
@@ -365,6 +366,8 @@ def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
         row = {"solves": st.krylov_solves, "iterations": st.krylov_iterations}
         if getattr(st, "refinements", 0):
             row["refinements"] = st.refinements
+        if getattr(st, "fallbacks", 0):
+            row["fallbacks"] = st.fallbacks
         if any(row.values()):
             out[name] = row
     return out

@@ -319,6 +319,8 @@ MISTAKES = [
      ["loads.interface.file = 'no-such.csv': no such file"]),
     ("output-key", ("every = 0", "evry = 0"), [], ["output.evry = 0: unknown key; did you mean 'every'?"]),
     ("solver", ("[output]", '[solver]\nlinear = "umfpak"\n\n[output]'), [], ["solver.linear = 'umfpak'"]),
+    ("solver-factors", None, ["--set", "solver.factors=singel"],
+     ["solver.factors = 'singel'", "did you mean 'single'?"]),
     ("missing-geometry", ("[geometry]\nlength = 6.0\nradius = 0.5\n", ""), [], ["geometry: missing"]),
     ("toml-syntax", ("nz = 6", "nz = = 6"), [], ["invalid TOML", "line 8"]),
     ("unused-load", None, ["--set", "loads.inlet=100"],

@@ -135,3 +135,15 @@ def test_pardiso_gives_the_superlu_solution(tmp_path):
     for name in ("q_in", "q_out", "p_mid", "uz_axis"):
         a, b = column(ref, name), column(rows, name)
         assert np.max(np.abs(a - b)) <= 1e-10 * np.max(np.abs(a))
+
+
+
+@pytest.mark.skipif("pardiso" not in BACKENDS, reason="optional extra 'fast' (pypardiso) not installed")
+def test_pardiso_has_no_single_precision_factors(tmp_path, capsys):
+    from multilayer.cli import main
+    from runs import CASES
+
+    code = main(["run", str(CASES / "prescribed-wall.toml"), "--out", str(tmp_path), "--quiet",
+                 "--set", "solver.linear=pardiso", "--set", "solver.factors=single"])
+    err = capsys.readouterr().err
+    assert code != 0 and "solver.factors = 'single'" in err and "need linear = one of ['superlu'" in err

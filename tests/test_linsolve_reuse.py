@@ -84,21 +84,27 @@ def test_reuse_is_validated():
         Reuse("krylov", 0)
 
 
-@pytest.mark.parametrize("coupler", ['{model="kinematic-splitting"}', '{model="monolithic",scheme="bdf2"}'])
-def test_coupled_run_with_krylov_matches_the_direct_run(tmp_path, coupler):
-    """Every series column of the default (Krylov) run is the refactorized run's to ~the solver tolerance."""
+@pytest.mark.parametrize("coupler, factors", [('{model="kinematic-splitting"}', "double"),
+                                              ('{model="monolithic",scheme="bdf2"}', "double"),
+                                              ('{model="kinematic-splitting"}', "single"),
+                                              ('{model="monolithic",scheme="crank-nicolson"}', "single")])
+def test_coupled_run_with_krylov_matches_the_direct_run(tmp_path, coupler, factors):
+    """Every series column of the Krylov run (the default; and on single-precision factors) is the refactorized
+    double-precision run's to ~the solver tolerance."""
     sets = ("mesh.nz=24", "mesh.nr=4", "time.end=0.004", f"coupler={coupler}")
     _, direct, rows_d = run_cli("pulse-koiter-thick", tmp_path / "direct", *sets, "solver.reuse=none")
-    _, krylov, rows_k = run_cli("pulse-koiter-thick", tmp_path / "krylov", *sets)
+    _, krylov, rows_k = run_cli("pulse-koiter-thick", tmp_path / "krylov", *sets, f"solver.factors={factors}")
     assert direct["status"] == krylov["status"] == "ok"
     system = "fluid" if "splitting" in coupler else "monolithic"
     assert krylov["factorizations"][system] < direct["factorizations"][system] == 40
     assert krylov["krylov"][system]["solves"] > 0
+    assert "fallbacks" not in krylov["krylov"][system]  # single-precision factors sufficed
     for key in ("eta_z1", "eta_z3", "q_in", "kinetic.fluid", "energy.total"):
         d = np.array([float(r[key]) for r in rows_d])
         k = np.array([float(r[key]) for r in rows_k])
         assert np.max(np.abs(k - d)) <= 1e-9 * np.max(np.abs(d)), key
-    assert krylov["energy"]["max_relative_residual"] <= 1e-11
+    # every solve of a single-precision run stops at the tolerance (a double run's direct solves go below it)
+    assert krylov["energy"]["max_relative_residual"] <= (1e-11 if factors == "double" else 1e-10)
 
 
 def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
@@ -148,3 +154,53 @@ def test_the_guess_is_the_polynomial_through_the_last_solutions():
         for t in range(steps):
             solver._solutions.append(f(t))
         assert np.allclose(solver._guess(), f(steps), rtol=0, atol=1e-13 * np.abs(f(steps)).max()), degree
+
+
+def test_single_precision_factors_give_the_double_answer():
+    """GMRES–IR: float32 factors, float64 residuals: the same tolerance, so the double run's answer to it, with
+    and without reuse; every solve of a single-precision run is a Krylov solve."""
+    b = np.random.default_rng(3).standard_normal(400)
+    answers = {}
+    for mode in ("krylov", "none"):
+        for factors in ("double", "single"):
+            stats = SolverStats()
+            solver = ReusingSolver(stats, "superlu", Reuse(mode, 8, 1e-12, factors))
+            xs = []
+            for A in drifting_matrices(steps=8, drift=1e-2):
+                xs.append(solver.solve(A, b))
+                assert np.linalg.norm(b - A @ xs[-1]) <= 1e-12 * np.linalg.norm(b)
+            answers[mode, factors] = np.array(xs)
+            assert stats.fallbacks == 0
+            if factors == "single":
+                assert stats.krylov_solves == 8 and stats.refinements == 0
+    for key, x in answers.items():
+        assert np.max(np.abs(x - answers["none", "double"])) <= 1e-10 * np.max(np.abs(x)), key
+
+
+def test_single_precision_factors_that_do_not_serve_fall_back_to_double():
+    """Float32 factors that do not exist (entries beyond float32's range) or that GMRES cannot converge from
+    within max_iterations (2×2 blocks [[1, 1], [1, 1 + δ]] with δ near float32's resolution: every block's
+    small pivot off by up to ~100 %): the matrix is factorized in double, the answer reaches the tolerance,
+    the fallback is counted, and the solver stays double."""
+    big = (drifting_matrices()[0] * 1e40).tocsr()
+    d = np.logspace(-6.8, -6.0, 200)
+    blocks = sp.block_diag([sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0 + dk]])) for dk in d]).tocsr()
+    rng = np.random.default_rng(4)
+    for A, bound, factorizations in ((big, 8, 1), (blocks, 2, 2)):
+        b = A @ rng.standard_normal(A.shape[0])
+        stats = SolverStats()
+        solver = ReusingSolver(stats, "superlu", Reuse("krylov", bound, 1e-12, "single"))
+        x = solver.solve(A, b)
+        assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
+        assert stats.fallbacks == 1 and stats.factorizations == factorizations  # (a singular one is not counted)
+        again = solver.factorize(A)  # a later factorization is double: its direct solve meets the tolerance
+        assert np.linalg.norm(b - A @ again.solve(b)) <= 1e-12 * np.linalg.norm(b)
+        assert stats.fallbacks == 1 and stats.factorizations == factorizations + 1
+
+
+def test_single_precision_factors_need_a_superlu_backend(monkeypatch):
+    monkeypatch.setitem(multilayer.linsolve.BACKENDS, "other", lambda: (lambda A: None))
+    with pytest.raises(ValueError, match="single-precision factors need one of the linear solvers"):
+        multilayer.linsolve.factorize(sp.eye(3).tocsc(), SolverStats(), "other", single=True)
+    with pytest.raises(ValueError, match="factors 'half'"):
+        Reuse(factors="half")
