@@ -11,8 +11,9 @@ counts; the Krylov iterations per step; the ratio of the step to
 kinematic-splitting's and to one fresh factorization of the fluid system.
 That factorization is timed in the same loop, once per round of steps (the
 first run's latest fluid matrix, free DOFs, factorized by that run's
-backend on the ordering it keeps — and, for comparison, by SuperLU with
-COLAMD, ``superlu-colamd``), so the ratio compares times taken side by side
+backend on the ordering it keeps and in its precision — and, for
+comparison, by SuperLU with COLAMD, ``superlu-colamd``, and in double
+precision when the first run's factors are single), so the ratio compares times taken side by side
 whether or not the runs themselves refactorize.  ``--vary KEY=A,B`` runs
 every coupler once per value (e.g. ``solver.reuse=krylov,none``).
 
@@ -66,18 +67,25 @@ def fresh_factorizations_s(setup: Setup, colamd: bool = True) -> dict[str, float
     """Seconds of fresh factorizations of the fluid's latest matrix ({} before there is one).
 
     ``fresh``: by the run's own backend instance, on the ordering it keeps for
-    the pattern (what a refactorizing step pays); ``colamd`` (unless not
-    asked for): SuperLU with its COLAMD ordering (``superlu-colamd``, what
-    every step paid before).  ``benchmarks/scaling.py`` times the same two.
+    the pattern and in the run's precision (``[solver] factors``: what a
+    refactorizing step pays); ``double``, when the run's factors are single:
+    the same in double precision, what a direct solve needs; ``colamd``
+    (unless not asked for): SuperLU with its COLAMD ordering
+    (``superlu-colamd``, what every step paid before).
+    ``benchmarks/scaling.py`` times the same.
     """
     A = getattr(setup.fluid.discrete, "last_matrix", None) if setup.fluid is not None else None
     if A is None:
         return {}
+    single = setup.case.reuse.factors == "single"
     out = {}
-    for name, stats, backend in (("fresh", SolverStats(backends=setup.fluid.stats.backends), setup.case.solver),
-                                 *([("colamd", SolverStats(), "superlu-colamd")] if colamd else [])):
+    for name, stats, backend, precision in (
+            ("fresh", SolverStats(backends=setup.fluid.stats.backends), setup.case.solver, single),
+            *([("double", SolverStats(backends=setup.fluid.stats.backends), setup.case.solver, False)]
+              if single else []),
+            *([("colamd", SolverStats(), "superlu-colamd", False)] if colamd else [])):
         t0 = time.perf_counter()
-        factorize(A, stats, backend)
+        factorize(A, stats, backend, single=precision)
         out[name] = time.perf_counter() - t0
     return out
 
@@ -119,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         with blas_threads(reference.case.threads):
             fresh.append(fresh_factorizations_s(reference))
     fresh = [f for f in fresh[1:] if f]
-    fresh_s = {k: statistics.median(f[k] for f in fresh) for k in ("fresh", "colamd")} if fresh else {}
+    fresh_s = {k: statistics.median(f[k] for f in fresh) for k in fresh[0]} if fresh else {}
     rows = {}
     for label, run in runs.items():
         warm = run["samples"][1:] or run["samples"]
@@ -141,6 +149,9 @@ def main(argv: list[str] | None = None) -> int:
             row["median.colamd_fluid_factorization"] = fresh_s["colamd"]
             row["ratio_to_one_colamd_factorization"] = row["median.step"] / fresh_s["colamd"]
             row["mean_ratio_to_one_fluid_factorization"] = row["mean.step"] / fresh_s["fresh"]
+            if "double" in fresh_s:  # the reference run's factors are single: also against a double one
+                row["median.double_fluid_factorization"] = fresh_s["double"]
+                row["ratio_to_one_double_fluid_factorization"] = row["median.step"] / fresh_s["double"]
         print(json.dumps(row), flush=True)
     return 0
 

@@ -13,8 +13,9 @@ least-squares exponent p of time per step ∝ N^p over the meshes with at
 least ``--fit-from`` unknowns.
 
 The fresh factorization is a numeric factorization by the run's own backend
-instance, on the ordering the run already keeps for the pattern (what a
-refactorizing step pays); ``--colamd`` adds one by SuperLU with its COLAMD
+instance, on the ordering the run already keeps for the pattern and in the
+run's precision (what a refactorizing step pays; with ``--set
+solver.factors=single`` a double-precision one is timed too); ``--colamd`` adds one by SuperLU with its COLAMD
 ordering (``superlu-colamd``, what every step paid before the ordering was
 kept) and the peak RSS is read before both.  Every step's kernel time
 and minor page faults are reported too (``median.system_s``,
@@ -87,6 +88,9 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = Fals
         row["ratio_to_one_fluid_factorization"] = row["median.step"] / fresh_s
     if colamd_s:
         row["ratio_to_one_colamd_factorization"] = row["median.step"] / colamd_s
+    if "double" in times:  # the run's factors are single: also against a double-precision factorization
+        row["double_fluid_factorization_s"] = times["double"]
+        row["ratio_to_one_double_fluid_factorization"] = row["median.step"] / times["double"]
     return row
 
 
