@@ -56,8 +56,9 @@ class SolverStats:
     #: single-precision factorizations too inaccurate to converge from, replaced by double ones for the rest
     #: of the run (``[solver] factors = "single"``)
     fallbacks: int = 0
-    #: set by the runner after a checkpoint: the system's next solve factorizes afresh, as the first solve of a
-    #: run resumed from that checkpoint must, so the two runs stay bit-identical
+    #: set by the runner after a checkpoint: the system's next solve factorizes afresh (in the configured
+    #: precision, a fallback forgotten), as the first solve of a run resumed from that checkpoint must, so the
+    #: two runs stay bit-identical
     refactorize: bool = False
     #: the backend instances of this owner, by name: what a backend keeps between factorizations (PARDISO's
     #: symbolic analysis) belongs to one run's solver, never to the process, so runs sharing a worker share nothing
@@ -404,9 +405,10 @@ class ReusingSolver:
         (e.g. the token of the system it is a block of); by default A itself.
         """
         key = A if key is None else key
-        if self.stats.refactorize:  # as a run resumed here starts: no factors, no earlier solutions
+        if self.stats.refactorize:  # as a run resumed here starts: no factors, no earlier solutions, no fallback
             self.stats.refactorize, self._factors, self._matrix = False, None, None
             self._solutions.clear()
+            self._single = self.reuse.factors == "single"
         again, self._last_key, self.last = self._last_key is key, key, A
         if self.holds(key):
             return self._refined(A, b)

@@ -39,12 +39,13 @@ def same_files(a: Path, b: Path) -> None:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
-@pytest.mark.parametrize("coupler", COUPLERS)
-def test_a_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, coupler):
+@pytest.mark.parametrize("coupler, factors", [*((c, "double") for c in COUPLERS), (COUPLERS[0], "single")])
+def test_a_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, coupler, factors):
     """100 steps at once, and 50 + resume to the same end: same series, η table, snapshots and collections."""
     full, half = tmp_path / "full", tmp_path / "half"
-    assert main(argv(full, "time.end=0.01", f"coupler={coupler}", extra=["--checkpoint-every", "25"])) == 0
-    assert main(argv(half, "time.end=0.005", f"coupler={coupler}", extra=["--checkpoint-every", "25"])) == 0
+    sets = ("time.end=0.01", f"coupler={coupler}", f"solver.factors={factors}")
+    assert main(argv(full, *sets, extra=["--checkpoint-every", "25"])) == 0
+    assert main(argv(half, *sets[1:], "time.end=0.005", extra=["--checkpoint-every", "25"])) == 0
     assert main(["resume", str(half), "--until", "0.01", "--quiet", "--no-plots"]) == 0
     same_files(full, half)
     summary = json.loads((half / "summary.json").read_text())
