@@ -53,8 +53,8 @@ class SolverStats:
     krylov_s: float = 0.0
     #: iterative-refinement sweeps after direct solves (:meth:`ReusingSolver.solve`)
     refinements: int = 0
-    #: single-precision factorizations too inaccurate to converge from, replaced by double ones for the rest
-    #: of the run (``[solver] factors = "single"``)
+    #: single-precision factorizations that did not serve (singular in float32, or GMRES could not converge
+    #: from them), replaced by double ones until the next checkpoint (``[solver] factors = "single"``)
     fallbacks: int = 0
     #: set by the runner after a checkpoint: the system's next solve factorizes afresh (in the configured
     #: precision, a fallback forgotten), as the first solve of a run resumed from that checkpoint must, so the
@@ -303,7 +303,8 @@ class Reuse:
         with residuals in float64 — the same tolerance, so the same answer
         to it (GMRES–IR).  Where single-precision factors of a matrix are
         too inaccurate for GMRES to converge from, that matrix is factorized
-        in double and the solver stays double (counted in ``fallbacks``).
+        in double and the solver stays double until the next checkpoint
+        (counted in ``fallbacks``).
     """
 
     mode: str = "krylov"
@@ -371,7 +372,8 @@ class ReusingSolver:
         self.last: sp.spmatrix | None = None  #: the latest matrix solved (benchmarks factorize it afresh)
         self._last_key = None
         self._factors: Factorized | None = None
-        self._solutions: deque[np.ndarray] = deque(maxlen=len(self.EXTRAPOLATION))  # of the latest new matrices, newest last
+        # the solutions of the latest new matrices, newest last: what the guess extrapolates
+        self._solutions: deque[np.ndarray] = deque(maxlen=len(self.EXTRAPOLATION))
         self._exhausted = False
         self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
         self._single = reuse.factors == "single"  # until a fallback
@@ -465,7 +467,7 @@ class ReusingSolver:
         ``REFINEMENTS`` sweeps.  Single-precision factors: GMRES on them
         (counted as a Krylov solve); where it does not converge within
         ``max_iterations`` the matrix is factorized in double precision, and
-        the solver stays double (a ``fallback``).
+        the solver stays double until the next checkpoint (a ``fallback``).
         """
         if self._single:
             t0 = time.perf_counter()

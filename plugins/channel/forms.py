@@ -4,8 +4,9 @@ Every form is written on Ω̂ with the ALE coefficient fields of
 :class:`multilayer_plugins.channel.ale.ALEFields` passed as ``w`` arguments (``J``,
 ``gz``, ``gr``, and ``dJdt`` / ``a`` where a term needs them), and without
 its physical constant: the step multiplies ``mass_J`` by ρ_f/Δt,
-``advection_skew`` by ρ_f, ``moving_domain`` by ρ_f, ``viscous`` by 2μ, and
-the ``dynamic_pressure`` load by P_in or P_out.
+``advection_skew`` by ρ_f (assembled as the skew part of ``advection``),
+``moving_domain`` by ρ_f, ``viscous`` by 2μ, and the ``dynamic_pressure``
+load by P_in or P_out.
 
 The forms use component indexing and elementwise arithmetic only (no
 einsum), so that :class:`multilayer.assembly.batched.BatchedForm` can call
