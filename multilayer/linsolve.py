@@ -420,20 +420,25 @@ class ReusingSolver:
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
         if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
                 and not self._exhausted):
-            t0 = time.perf_counter()
-            x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
-                                                 self.reuse.max_iterations, self._guess(), self._workspace)
-            self.stats.krylov_iterations += iterations
+            x, iterations = self._gmres(A, b, self._guess())
             self._exhausted = iterations >= self.reuse.max_iterations
-            self.stats.krylov_s += time.perf_counter() - t0
-            if x is not None:
-                self.stats.krylov_solves += 1
         if x is None:
             self.factorize(A, key)
             x = self._refined(A, b)
         if not again:
             self._solutions.append(x)
         return x
+
+    def _gmres(self, A: sp.spmatrix, b: np.ndarray, guess: np.ndarray | None) -> tuple[np.ndarray | None, int]:
+        """GMRES on the held factors from ``guess``, counted (iterations, seconds, solves that converged)."""
+        t0 = time.perf_counter()
+        x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
+                                             self.reuse.max_iterations, guess, self._workspace)
+        self.stats.krylov_iterations += iterations
+        self.stats.krylov_s += time.perf_counter() - t0
+        if x is not None:
+            self.stats.krylov_solves += 1
+        return x, iterations
 
     def _fall_back(self) -> None:
         """From now on, double-precision factors (single ones did not serve: counted in ``fallbacks``)."""
@@ -470,13 +475,8 @@ class ReusingSolver:
         the solver stays double until the next checkpoint (a ``fallback``).
         """
         if self._single:
-            t0 = time.perf_counter()
-            x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
-                                                 self.reuse.max_iterations, None, self._workspace)
-            self.stats.krylov_iterations += iterations
-            self.stats.krylov_s += time.perf_counter() - t0
+            x, _ = self._gmres(A, b, None)
             if x is not None:
-                self.stats.krylov_solves += 1
                 return x
             self._fall_back()
             self.factorize(A, self._matrix)

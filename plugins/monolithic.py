@@ -102,7 +102,7 @@ class Monolithic(Coupler):
 class Layout:
     """The monolithic system's sparsity, fixed for the run: the fluid's pattern and the wall's, summed.
 
-    A step fills it with one ``np.add.at`` and takes the free/fixed blocks as
+    A step fills it with the pattern's filler (``np.add.at``) and takes the free/fixed blocks as
     index maps (:class:`multilayer.assembly.pattern.Pattern`), like the fluid's own step.
     """
 

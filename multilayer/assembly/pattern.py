@@ -3,7 +3,7 @@
 The A2 matrix changes every step but its nonzero structure does not.  The
 pattern is built once from the (row, column) lists of every term; after
 that a step only computes values and sums them into the CSR data array
-(:class:`Filler`, one ``np.add.at`` into a kept array) — no sorting, no duplicate summation,
+(:class:`Filler`, ``np.add.at`` of each term into a kept array) — no sorting, no duplicate summation,
 no new index arrays.  Sub-matrices (the free/fixed blocks of a Dirichlet elimination)
 are index maps into the same data array.  A fixed pattern is also what
 lets a solver backend keep its symbolic analysis (PARDISO) or its
