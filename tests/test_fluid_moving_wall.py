@@ -7,13 +7,17 @@ mismatch with the continuous dA/dt(t^{n+1}) is first order in Δt
 (measured 1.56e-1, 7.84e-2, 3.92e-2 relative to max dA/dt at Δt = T₀/20,
 /40, /80).  The energy identity closes to round-off every step (measured
 ≤ 2e-14 relative) with the prescribed wall's work, and in the coupled mode
-with a Robin mass and a given v^{n+½}.
+with a Robin mass and a given v^{n+½} — with direct solves.  With the
+default Krylov reuse both hold to what the solver tolerance 1e-12 allows
+(docs/performance.md, "The tolerance": the identity moves by Δt x̄ᵀr with
+‖r‖ ≤ 1e-12 ‖b‖; measured ≤ 7.3e-13 and 5.3e-12 relative here).
 """
 
 import numpy as np
 import pytest
 from skfem import BilinearForm, asm
 
+from multilayer.linsolve import Reuse
 from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.ledger import end_fluxes
@@ -38,9 +42,9 @@ def line_mass(v, psi, w):
     return v * psi
 
 
-def march_prescribed(cls, order, nz, nr, dt, steps):
+def march_prescribed(cls, order, nz, nr, dt, steps, reuse=Reuse()):
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, wall="prescribed")
+    fluid.setup(L, R, nz=nz, nr=nr, order=order, wall="prescribed", reuse=reuse)
     ones = np.asarray(asm(line_mass, fluid.line.basis).sum(axis=0)).ravel()  # ∫ψᵢ: area of a line vector
     state, t, records = fluid.initial_state(), 0.0, []
     for _ in range(steps):
@@ -60,14 +64,17 @@ def march_prescribed(cls, order, nz, nr, dt, steps):
     return fluid, records
 
 
+@pytest.mark.parametrize("reuse, bound", [("none", 1e-12), ("krylov", 1e-10)])
 @pytest.mark.parametrize("cls, order", [(NavierStokes, 2), (Stokes, 2), (NavierStokes, 1)])
-def test_mass_balance_and_energy_identity_every_step(cls, order):
-    fluid, records = march_prescribed(cls, order, nz=8, nr=3, dt=T0 / 20, steps=20)
+def test_mass_balance_and_energy_identity_every_step(cls, order, reuse, bound):
+    """Direct solves: both to round-off; Krylov solves (tolerance 1e-12 on ‖b‖): to 1e-10, a factor ~20 above
+    the largest measured, far below what a dropped term or a wrong solve leaves (tests/test_fluid_ledger.py)."""
+    fluid, records = march_prescribed(cls, order, nz=8, nr=3, dt=T0 / 20, steps=20, reuse=Reuse(reuse))
     scale = abs(area_rate(0.0))
     for rec in records:
-        assert abs(rec["discrete"]) < 1e-12 * scale
+        assert abs(rec["discrete"]) < bound * scale
         e = rec["energy"]
-        assert abs(e["a2.residual"]) <= 1e-12 * e["a2.scale"]  # measured ≤ 2e-14
+        assert abs(e["a2.residual"]) <= bound * e["a2.scale"]  # direct: measured ≤ 2e-14
         assert e["interface.power"] == 0.0
     assert any(abs(rec["energy"]["work.wall"]) > 1e-3 * rec["energy"]["a2.scale"] for rec in records)
     # u = v e_r on the wall: the state's v is the prescribed wall velocity

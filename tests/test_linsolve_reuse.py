@@ -9,6 +9,7 @@ import scipy.sparse.linalg as spla
 
 import multilayer.krylov
 import multilayer.linsolve
+from multilayer.krylov import SolutionSpan
 from multilayer.linsolve import Reuse, ReusingSolver, SolverStats
 from runs import run_cli
 
@@ -56,11 +57,13 @@ def test_refactorizes_past_the_bound_and_none_factorizes_every_matrix():
     assert none.factorizations == len(far) and none.krylov_solves == 0 and none.solves == 2 * len(far)
 
 
-def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_refactorizes_next():
+def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_refactorizes_next(monkeypatch):
     """No back-substitution beyond one per GMRES iteration; after a solve that took all max_iterations, the next
-    matrix is factorized without trying GMRES (it would fail after paying for them: the drift only grows)."""
+    matrix is factorized without trying GMRES (it would fail after paying for them: the drift only grows).
+    GMRES starts from 0 here: from the span's guess these matrices need one or two iterations at any age."""
+    monkeypatch.setattr(SolutionSpan, "guess", lambda self, A, b: None)
     stats = SolverStats()
-    solver = ReusingSolver(stats, "superlu", Reuse("krylov", 4, 1e-12))
+    solver = ReusingSolver(stats, "superlu", Reuse("krylov", 5, 1e-12))
     b = np.ones(400)
     log = []
     for A in drifting_matrices(drift=0.01, steps=20):
@@ -72,9 +75,9 @@ def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_r
     for (its, factorizations, solves), following in zip(log, log[1:]):
         if factorizations == 0:
             assert solves == its  # a Krylov solve: its back-substitutions are its iterations
-            if its == 4:
+            if its == 5:
                 assert following == (0, 1, 1)  # factorized at once, one direct solve
-    assert sum(1 for its, f, _ in log[:-1] if f == 0 and its == 4) >= 2, log  # the rule was exercised
+    assert sum(1 for its, f, _ in log[:-1] if f == 0 and its == 5) >= 2, log  # the rule was exercised
 
 
 def test_reuse_is_validated():
@@ -127,7 +130,7 @@ def test_the_extrapolated_guess_saves_iterations_and_changes_no_answer(monkeypat
     answers, iterations = {}, {}
     for name in ("guess", "no guess"):
         if name == "no guess":
-            monkeypatch.setattr(ReusingSolver, "_guess", lambda self: None)
+            monkeypatch.setattr(SolutionSpan, "guess", lambda self, A, b: None)
         stats = SolverStats()
         solver = ReusingSolver(stats, "superlu", Reuse("krylov", 8, 1e-12))
         xs = []
@@ -141,19 +144,47 @@ def test_the_extrapolated_guess_saves_iterations_and_changes_no_answer(monkeypat
     assert np.max(np.abs(answers["guess"] - answers["no guess"])) <= 1e-10 * np.max(np.abs(answers["guess"]))
 
 
-def test_the_guess_is_the_polynomial_through_the_last_solutions():
-    """Constant after one solution, linear after two, quadratic after three or more (the oldest dropped): the
-    next value of solutions that are such polynomials of the step."""
+def test_the_guess_is_exact_on_solutions_polynomial_in_the_step():
+    """Solutions that are a polynomial of degree < k in the step (k = the span's size) lie in the span of the
+    last k: the least-residual guess is the next one, to round-off, for any matrix — also after the ring has
+    wrapped (the oldest let go, the columns out of order)."""
     rng = np.random.default_rng(2)
-    c0, c1, c2 = rng.standard_normal((3, 50))
-    solver = ReusingSolver(SolverStats(), "superlu", Reuse())
-    assert solver._guess() is None
-    for degree, steps in ((0, 1), (1, 2), (2, 4)):  # four solutions of a quadratic: the first is let go
-        f = [lambda t: c0, lambda t: c0 + c1 * t, lambda t: c0 + c1 * t + c2 * t * t][degree]
-        solver._solutions.clear()
+    A = sp.random(60, 60, density=0.1, random_state=rng) + 4.0 * sp.eye(60)
+    A = A.tocsr()
+    span = SolutionSpan(4)
+    assert span.guess(A, np.ones(60)) is None
+    for degree, steps in ((0, 1), (1, 2), (3, 4), (2, 11), (3, 9)):
+        coefficients = rng.standard_normal((degree + 1, 60))
+        f = lambda t: sum(c * t**p for p, c in enumerate(coefficients))  # noqa: E731
+        span.clear()
         for t in range(steps):
-            solver._solutions.append(f(t))
-        assert np.allclose(solver._guess(), f(steps), rtol=0, atol=1e-13 * np.abs(f(steps)).max()), degree
+            span.add(f(t))
+        assert len(span) == min(steps, 4)
+        x = span.guess(A, A @ f(steps))
+        assert np.linalg.norm(x - f(steps)) <= 1e-10 * np.linalg.norm(f(steps)), (degree, steps)
+
+
+def test_the_guess_minimizes_the_residual_over_the_latest_solutions_only():
+    """The guess's residual is at most that of any combination of the span (here the quadratic extrapolation
+    and each solution alone); a solution older than the span's size no longer counts, even the exact one."""
+    rng = np.random.default_rng(4)
+    A = (sp.random(80, 80, density=0.1, random_state=rng) + 5.0 * sp.eye(80)).tocsr()
+    b = rng.standard_normal(80)
+    span = SolutionSpan(3)
+    exact = spla.spsolve(A.tocsc(), b)
+    span.add(exact)
+    assert np.linalg.norm(A @ span.guess(A, b) - b) <= 1e-12 * np.linalg.norm(b)
+    xs = [rng.standard_normal(80) for _ in range(3)]
+    for x in xs:
+        span.add(x)  # the exact solution is let go
+    r = np.linalg.norm(b - A @ span.guess(A, b))
+    assert r > 1e-3 * np.linalg.norm(b)
+    for combination in (3 * xs[2] - 3 * xs[1] + xs[0], *xs):
+        assert r <= np.linalg.norm(b - A @ combination) * (1 + 1e-12)
+    span.add(np.ones(81))  # a system of another size starts the span afresh
+    assert len(span) == 1 and span.guess(A, b) is None
+    with pytest.raises(ValueError, match="at least 1"):
+        SolutionSpan(0)
 
 
 def test_single_precision_factors_give_the_double_answer():
