@@ -55,6 +55,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--from", dest="first", type=int, default=max(SPANS) + 1,
                         help="the first new matrix counted, from 1 (default: once every candidate has its solutions)")
     args = parser.parse_args(argv)
+    if args.first < max(DEGREES) + 2:
+        parser.error(f"--from {args.first}: expected at least {max(DEGREES) + 2} (the degree-{max(DEGREES)} "
+                     f"extrapolation needs {max(DEGREES) + 1} earlier solutions)")
     registry = Registry.load()
     case = load_case(args.case, args.set, registry)
     setup = Setup.build(case, registry)
