@@ -121,8 +121,8 @@ def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
     assert stats.krylov_solves == 1 and stats.factorizations == 2
 
 
-def test_the_extrapolated_guess_saves_iterations_and_changes_no_answer(monkeypatch):
-    """Matrices and right-hand sides drifting smoothly: GMRES started from the extrapolated solutions gains fewer
+def test_the_guess_saves_iterations_and_changes_no_answer(monkeypatch):
+    """Matrices and right-hand sides drifting smoothly: GMRES started from the span of the solutions gains fewer
     orders than from M⁻¹b, and both reach the tolerance (the answers agree to it)."""
     mats = drifting_matrices(steps=10, drift=1e-3)
     rng = np.random.default_rng(5)
