@@ -73,12 +73,26 @@ class SolutionSpan:
 
     def guess(self, A: sp.spmatrix, b: np.ndarray) -> np.ndarray | None:
         """The least-residual x in the span (None when it holds no solution of b's length)."""
+        start = self.start(A, b)
+        return None if start is None else start[0]
+
+    def start(self, A: sp.spmatrix, b: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(x₀, r₀): the least-residual x in the span and its residual b − A x₀ (None as :meth:`guess`).
+
+        r₀ = b − (A X) c comes from the product the least-squares problem
+        already formed, so GMRES started here does not pay one more product
+        with A for it; it equals b − A (X c) to round-off, and the residual
+        GMRES stops on is checked afresh anyway.
+        """
         m = len(self)
         if m == 0 or self._X.shape[0] != b.shape[0]:
             return None
         X = self._X if m == self.size else self._X[:, :m]
-        c = np.linalg.lstsq(A @ X, b, rcond=None)[0]  # SVD: repeated solutions (a steady flow) lose rank, not accuracy
-        return X @ c if np.all(np.isfinite(c)) else None
+        AX = A @ X
+        c = np.linalg.lstsq(AX, b, rcond=None)[0]  # SVD: repeated solutions (a steady flow) lose rank, not accuracy
+        if not np.all(np.isfinite(c)):
+            return None
+        return X @ c, b - AX @ c
 
 
 class Workspace:
@@ -99,7 +113,8 @@ class Workspace:
 
 def preconditioned_gmres(A: sp.spmatrix, b: np.ndarray, precondition: Callable[[np.ndarray], np.ndarray],
                          tolerance: float, max_iterations: int, guess: np.ndarray | None = None,
-                         workspace: Workspace | None = None) -> tuple[np.ndarray | None, int]:
+                         workspace: Workspace | None = None,
+                         residual: np.ndarray | None = None) -> tuple[np.ndarray | None, int]:
     """Solve A x = b by GMRES on A M⁻¹ (M⁻¹ = ``precondition``) from x₀ = ``guess`` (0 by default).
 
     One cycle of at most ``max_iterations`` iterations, each one
@@ -128,6 +143,9 @@ def preconditioned_gmres(A: sp.spmatrix, b: np.ndarray, precondition: Callable[[
         magnitude to gain.
     workspace : Workspace, optional
         Where the basis vectors live (fresh arrays when not given).
+    residual : ndarray, optional
+        b − A ``guess`` when the caller has it (:meth:`SolutionSpan.start`):
+        one product with A fewer.  Ignored without a guess.
 
     Returns
     -------
@@ -150,7 +168,7 @@ def preconditioned_gmres(A: sp.spmatrix, b: np.ndarray, precondition: Callable[[
     m, n = max_iterations, b.shape[0]
     V, Z = (workspace or Workspace()).arrays(m, n)
     x0 = np.zeros_like(b) if guess is None else guess
-    r = b if guess is None else b - A @ guess
+    r = b if guess is None else (b - A @ guess if residual is None else residual)
     beta = float(np.linalg.norm(r))
     H = np.zeros((m + 1, m))
     cs, sn = np.zeros(m), np.zeros(m)

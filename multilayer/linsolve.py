@@ -433,9 +433,9 @@ class ReusingSolver:
         """GMRES on the held factors (from the span's guess if ``guess``, else 0), counted (iterations, seconds
         with the guess's, solves that converged)."""
         t0 = time.perf_counter()
-        x0 = self._span.guess(A, b) if guess else None
+        x0, r0 = (self._span.start(A, b) if guess else None) or (None, None)
         x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
-                                             self.reuse.max_iterations, x0, self._workspace)
+                                             self.reuse.max_iterations, x0, self._workspace, r0)
         self.stats.krylov_iterations += iterations
         self.stats.krylov_s += time.perf_counter() - t0
         if x is not None:

@@ -9,7 +9,7 @@ import scipy.sparse.linalg as spla
 
 import multilayer.krylov
 import multilayer.linsolve
-from multilayer.krylov import SolutionSpan
+from multilayer.krylov import SolutionSpan, preconditioned_gmres
 from multilayer.linsolve import Reuse, ReusingSolver, SolverStats
 from runs import run_cli
 
@@ -61,7 +61,7 @@ def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_r
     """No back-substitution beyond one per GMRES iteration; after a solve that took all max_iterations, the next
     matrix is factorized without trying GMRES (it would fail after paying for them: the drift only grows).
     GMRES starts from 0 here: from the span's guess these matrices need one or two iterations at any age."""
-    monkeypatch.setattr(SolutionSpan, "guess", lambda self, A, b: None)
+    monkeypatch.setattr(SolutionSpan, "start", lambda self, A, b: None)
     stats = SolverStats()
     solver = ReusingSolver(stats, "superlu", Reuse("krylov", 5, 1e-12))
     b = np.ones(400)
@@ -130,7 +130,7 @@ def test_the_guess_saves_iterations_and_changes_no_answer(monkeypatch):
     answers, iterations = {}, {}
     for name in ("guess", "no guess"):
         if name == "no guess":
-            monkeypatch.setattr(SolutionSpan, "guess", lambda self, A, b: None)
+            monkeypatch.setattr(SolutionSpan, "start", lambda self, A, b: None)
         stats = SolverStats()
         solver = ReusingSolver(stats, "superlu", Reuse("krylov", 8, 1e-12))
         xs = []
@@ -185,6 +185,30 @@ def test_the_guess_minimizes_the_residual_over_the_latest_solutions_only():
     assert len(span) == 1 and span.guess(A, b) is None
     with pytest.raises(ValueError, match="at least 1"):
         SolutionSpan(0)
+
+
+def test_the_start_carries_the_guess_residual_and_gmres_from_it_gives_the_same_answer():
+    """SolutionSpan.start's r₀ (from the least-squares product A X) is b − A x₀ to round-off, and GMRES handed
+    it stops at the same iteration with the same answer as GMRES forming b − A x₀ itself."""
+    rng = np.random.default_rng(7)
+    A0 = (sp.random(120, 120, density=0.08, random_state=rng) + 6.0 * sp.eye(120)).tocsr()
+    lu = spla.splu(A0.tocsc())
+    span = SolutionSpan(5)
+    for k in range(7):
+        Ak = (A0 + 0.02 * k * sp.diags(np.cos(np.arange(120.0) + k))).tocsr()
+        b = np.sin(0.1 * np.arange(120) + 0.3 * k)
+        start = span.start(Ak, b)
+        if start is not None:
+            x0, r0 = start
+            assert np.array_equal(x0, span.guess(Ak, b))
+            assert np.linalg.norm(r0 - (b - Ak @ x0)) <= 1e-14 * np.linalg.norm(b)
+            given, its_given = preconditioned_gmres(Ak, b, lu.solve, 1e-12, 20, x0, residual=r0)
+            formed, its_formed = preconditioned_gmres(Ak, b, lu.solve, 1e-12, 20, x0)
+            assert its_given == its_formed >= 1
+            assert np.linalg.norm(given - formed) <= 1e-11 * np.linalg.norm(formed)
+            assert np.linalg.norm(b - Ak @ given) <= 1e-12 * np.linalg.norm(b)
+        span.add(spla.spsolve(Ak.tocsc(), b))
+    assert len(span) == 5
 
 
 def test_single_precision_factors_give_the_double_answer():
