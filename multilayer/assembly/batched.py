@@ -127,9 +127,8 @@ def _unit_jets(basis: skfem.CellBasis, inverse: np.ndarray, trial: bool) -> tupl
     return value[..., :, None, :, :], grad[..., :, None, :, :]
 
 
-def _add(total: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarray) -> None:
-    """total[rows, cols] += K, in place (positions along the first two axes; a run of positions as a view)."""
-    r, c = _run(rows), _run(cols)
+def _add(total: np.ndarray, r, c, K: np.ndarray) -> None:
+    """total[r, c] += K, in place (positions along the first two axes, each as :func:`_run` gives them)."""
     if isinstance(r, slice) or isinstance(c, slice):
         total[r, c] += K  # at most one index array: it selects along its own axis
     else:
@@ -214,6 +213,7 @@ class BatchedForm:
         self._udofs_t = np.ascontiguousarray(self._udofs.T)  # (element, j)
         self._gathered = np.empty(self._udofs_t.shape)
         self._scratch: np.ndarray | None = None
+        self._slots_made: dict = {}  # see _slots
 
     def chunks(self):
         """Slices of at most :attr:`chunk` elements covering the mesh."""
@@ -295,6 +295,24 @@ class BatchedForm:
             plan = self._plans[key] = (R, C, pairs, zero, jets_u, test_v)
         return plan
 
+    def _slots(self, form, fields: dict, R: np.ndarray, C: np.ndarray):
+        """Where ``form``'s kernel goes in one on slots (R, C), made once per form, kind of fields and slots.
+
+        (rows, cols, at, at_t): its active test and trial slots, their
+        positions in (R, C), and the transposed positions (a skew part's
+        −½ Kᵀ); None when the form uses no slot.
+        """
+        kind = (form, tuple(sorted((k, np.shape(a)[:-2] if np.ndim(a) >= 2 else None) for k, a in fields.items())),
+                R.tobytes(), C.tobytes())
+        if kind not in self._slots_made:
+            used = self.active(form, fields)
+            rows, cols = np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0))
+            self._slots_made[kind] = (
+                (rows, cols, (_run(np.searchsorted(R, rows)), _run(np.searchsorted(C, cols))),
+                 (_run(np.searchsorted(R, cols)), _run(np.searchsorted(C, rows))) if self._same_space else None)
+                if rows.size and cols.size else None)
+        return self._slots_made[kind]
+
     def kernel(self, terms: list[Term], cut: slice = slice(None), slots: tuple | None = None) -> np.ndarray:
         """Σ scale · K̂ · dx of the terms on elements ``cut``: (test jet, trial jet, point, element).
 
@@ -327,10 +345,10 @@ class BatchedForm:
 
         for scale, form, fields in terms:
             form, skew = self._unwrap(form)
-            used = self.active(form, fields)
-            rows, cols = np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0))
-            if not (rows.size and cols.size):
+            slots_of_form = self._slots(form, fields, R, C)
+            if slots_of_form is None:
                 continue
+            rows, cols, at, at_t = slots_of_form
             u = _field(uv, ug[..., cut]) if cols.size == nu else _field(uv[..., cols, :, :], ug[..., cols, :, cut])
             v = _field(vv, vg[..., cut]) if rows.size == nv else _field(vv[..., rows, :, :, :],
                                                                         vg[..., rows, :, :, cut])
@@ -338,9 +356,9 @@ class BatchedForm:
                                      x=self._x[..., cut])
             K = np.broadcast_to((0.5 * scale if skew else scale) * form.form(u, v, params),
                                 (rows.size, cols.size, nq, ne))
-            _add(total, np.searchsorted(R, rows), np.searchsorted(C, cols), K)
+            _add(total, *at, K)
             if skew:  # −½ Kᵀ: the form with its arguments swapped
-                _add(total, np.searchsorted(R, cols), np.searchsorted(C, rows), -K.swapaxes(0, 1))
+                _add(total, *at_t, -K.swapaxes(0, 1))
         total *= self._dx[:, cut]
         return total
 

@@ -20,7 +20,6 @@ The functionals at the end are the integrands of the A2 energy identity
 
 from __future__ import annotations
 
-import numpy as np
 from skfem import BilinearForm, Functional, LinearForm
 
 
@@ -30,30 +29,40 @@ def dot(a, b):
 
 
 def ddot(A, B):
-    """A:B of two symmetric 2×2 tensors (component axes first)."""
-    return A[0][0] * B[0][0] + 2.0 * (A[0][1] * B[0][1]) + A[1][1] * B[1][1]
+    """A:B of two symmetric 2×2 tensors (component axes first).
+
+    The 2 of the off-diagonal pair multiplies A's entry before the product
+    (exact either way): batched, A is one function's, the product every pair's.
+    """
+    return A[0][0] * B[0][0] + (2.0 * A[0][1]) * B[0][1] + A[1][1] * B[1][1]
 
 
-def grad_eta(u, w) -> np.ndarray:
-    """∇^η u on Ω̂ for a vector field u = (u_z, u_r): entry [i][j] is ∂_j u_i, j ∈ (z, r)."""
+def grad_eta(u, w) -> tuple:
+    """∇^η u on Ω̂ for a vector field u = (u_z, u_r): entry [i][j] is ∂_j u_i, j ∈ (z, r).
+
+    Nested tuples of the four entries (no array of them is stacked: in the
+    batched assembly each entry is a kernel-sized array, and a stacked copy
+    of the four would be the most of a form's cost).
+    """
     G = u.grad
-    return np.array(
-        [
-            [G[0][0] + w.gz * G[0][1], w.gr * G[0][1]],
-            [G[1][0] + w.gz * G[1][1], w.gr * G[1][1]],
-        ]
-    )
+    return ((G[0][0] + w.gz * G[0][1], w.gr * G[0][1]),
+            (G[1][0] + w.gz * G[1][1], w.gr * G[1][1]))
 
 
-def sym(G: np.ndarray) -> np.ndarray:
+def sym(G) -> tuple:
     """The symmetric part ½(G + Gᵀ): D^η(u) when G = ∇^η u."""
     off = 0.5 * (G[0][1] + G[1][0])
-    return np.array([[G[0][0], off], [off, G[1][1]]])
+    return ((G[0][0], off), (off, G[1][1]))
 
 
-def transport(a, G: np.ndarray) -> np.ndarray:
+def scaled(c, A) -> tuple:
+    """c A for a coefficient field c and a 2 × 2 tensor A (nested tuples)."""
+    return ((c * A[0][0], c * A[0][1]), (c * A[1][0], c * A[1][1]))
+
+
+def transport(a, G) -> tuple:
     """(a·∇^η)u for G = ∇^η u: component i is Σ_j a_j ∂_j u_i."""
-    return np.array([a[0] * G[0][0] + a[1] * G[0][1], a[0] * G[1][0] + a[1] * G[1][1]])
+    return (a[0] * G[0][0] + a[1] * G[0][1], a[0] * G[1][0] + a[1] * G[1][1])
 
 
 @BilinearForm
@@ -70,7 +79,8 @@ def advection(u, q, w):
     to the batched assembly, which evaluates it once on its 2 × 4 active jet
     slots and adds ½(K − Kᵀ): the kernel of ``advection_skew``.
     """
-    return dot(w.J * transport(w.a, grad_eta(u, w)), q)
+    t = transport(w.a, grad_eta(u, w))
+    return dot((w.J * t[0], w.J * t[1]), q)
 
 
 @BilinearForm
@@ -91,7 +101,7 @@ def moving_domain(u, q, w):
 @BilinearForm
 def viscous(u, q, w):
     """∫ J D^η(u):D^η(q)  (× 2μ)."""
-    return ddot(w.J * sym(grad_eta(u, w)), sym(grad_eta(q, w)))
+    return ddot(scaled(w.J, sym(grad_eta(u, w))), sym(grad_eta(q, w)))
 
 
 @BilinearForm
