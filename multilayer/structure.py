@@ -116,8 +116,7 @@ class StructureStep:
         V = s.new_level(mean, [x.wall.V for x in states])
         new_v = None
         if self.fluid_line is not None and states[0].v is not None:
-            P = st.space.prolongations[self.fluid_line]
-            new_v = s.new_level(P.T @ mean, [x.v for x in states])
+            new_v = s.new_level(st.space.restrictions[self.fluid_line] @ mean, [x.v for x in states])
         new = State(states[0].n + 1, 0.0, WallState(d, V), v=new_v)
         stored, numerical, dissipation = {}, 0.0, {}
         ds = [d, *[x.wall.d for x in states]]

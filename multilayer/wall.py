@@ -55,6 +55,12 @@ class WallSpace:
     bands: list[BandSpace]
     basis: skfem.CellBasis | None  #: vector basis on all bands (None: no band)
     placements: list[Placement]
+    #: R_i = P_iᵀ as its own CSR matrix: wall DOFs → line i DOFs (a step restricts every step; ``P.T`` is a new
+    #: matrix each time)
+    restrictions: list[sp.csr_matrix] = attrs.field(init=False)
+
+    def __attrs_post_init__(self):
+        self.restrictions = [P.T.tocsr() for P in self.prolongations]
 
     @classmethod
     def build(cls, layers: Sequence[Layer], length: float, radius: float, nz: int, order: int,

@@ -67,7 +67,7 @@ class DirichletNeumann(Coupler):
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         S, dt, fluid, wall = self.scheme, setup.dt, setup.fluid, setup.wall
-        P = wall.prolongations[LUMEN]
+        P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         structure = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver)
         ends = wall.lines[LUMEN].end_dofs
         accelerate = self.accelerator()
@@ -89,7 +89,7 @@ class DirichletNeumann(Coupler):
                 r = fluid.reaction(prescribed, solution.mean)  # minus the fluid's force on the wall
                 forces = {"external": external_force(setup, loads["external"]), "fluid": P @ -r}
                 w = structure.step(state, forces)
-                x_tilde = P.T @ w.mean
+                x_tilde = R @ w.mean
                 change = x_tilde - x
                 residual = float(np.linalg.norm(change) / max(np.linalg.norm(x_tilde), 1e-300))
                 if accelerate is None or residual <= self.tolerance:
@@ -101,11 +101,11 @@ class DirichletNeumann(Coupler):
                         f"the wall is too light for {self.acceleration}, or raise max_iterations")
                 x = accelerate.next(x, x_tilde, change)
                 x[ends] = 0.0
-            eta_new = P.T @ w.wall.d
+            eta_new = R @ w.wall.d
             terms = fluid.identity(prescribed, solution, state.eta, eta_new)
             extra = {"acceleration": accelerate.memory()} if accelerate is not None else {}
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
-                               v=P.T @ w.wall.V, eta=eta_new, extra=extra)
+                               v=R @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             work = {k: v for k, v in {**w.work, **work_f}.items() if k not in ("work.fluid", "work.wall")}
             dissipation = {**w.dissipation, **dissipation_f,

@@ -79,7 +79,7 @@ class KinematicSplitting(Coupler):
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         S, dt, fluid, wall = self.scheme, setup.dt, setup.fluid, setup.wall
         a1 = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver, fluid_line=LUMEN)
-        P = wall.prolongations[LUMEN]
+        P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
         robin = (S.inertia / dt) * lumen_mass(setup)  # the same object every step: its slots are looked up once
         for n, t0, t1 in setup.windows(state.n):
@@ -90,11 +90,11 @@ class KinematicSplitting(Coupler):
             if self.beta:
                 forces["splitting"] = P @ tau
             a = a1.step(state, forces)
-            eta_new = P.T @ a.wall.d
+            eta_new = R @ a.wall.d
             # A2: the fluid on the domain A1 left, the thin layer's inertia as the Robin term
             # (α₀/β₀)M/Δt (v̄ − V̄_Γ), from A1's test-level velocity V̄_Γ: the thin layer's new level
             # (v̄ − β₁vⁿ)/β₀ then starts from vⁿ like the fluid's trace, so u^{n+1} = v^{n+1} on Γ
-            v_mean_a1 = P.T @ a.mean
+            v_mean_a1 = R @ a.mean
             interface = Interface(robin, robin @ v_mean_a1 - tau)
             domain = Domain(S.geometry([eta_new, state.eta]), v_mean_a1)
             history = [x.fluid for x in state.history(S.old_levels)]

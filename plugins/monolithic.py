@@ -64,7 +64,7 @@ class Monolithic(Coupler):
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         S, dt, fluid, wall, stack = self.scheme, setup.dt, setup.fluid, setup.wall, setup.stack
-        P = wall.prolongations[LUMEN]
+        R = wall.restrictions[LUMEN]
         structure = StructureStep(stack, S, dt, setup.stats("wall"))
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
@@ -91,7 +91,7 @@ class Monolithic(Coupler):
             # each part takes back its share of the solution
             solution = fluid.advance(system, x[: fluid.ndofs])
             w = structure.finish(history, x[glob], forces)
-            eta_new = P.T @ w.wall.d
+            eta_new = R @ w.wall.d
             terms = fluid.identity(system, solution, state.eta, eta_new)
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=fluid.wall_velocity(solution.state), eta=eta_new)

@@ -45,6 +45,8 @@ def test_line_is_the_canonical_interface_line():
     wall_dof = ch.prolongation.tocsc().indices  # velocity DOF of each line DOF
     assert np.allclose(ch.velocity.doflocs[:, wall_dof], [fluid.line.z, np.full(5, 0.5)])
     assert set(wall_dof) == set(ch.wall_r) and np.all(wall_dof % 2 == 1)  # u_r DOFs
+    u = np.arange(ch.velocity.N, dtype=float)
+    assert np.array_equal(ch.wall_trace(u), u[wall_dof])  # the kept restriction is Pᵀ
 
 
 def test_wall_mode_errors():

@@ -84,3 +84,12 @@ def test_matrix_is_factorized_once_per_run():
     *_, stats = measured_eigenvalue("P", 1, 1, 4, 2, 2, 1e-6, steps=25)
     assert stats.factorizations == 1
     assert stats.solves == 25
+
+
+def test_the_kept_restrictions_are_the_prolongations_transposed():
+    """WallSpace.restrictions[i] (kept: a step restricts to each line every step) is P_iᵀ, line by line."""
+    space = WallSpace.build([BAND], L, R, 6, 2, [2])
+    x = np.arange(space.ndofs, dtype=float) ** 1.5
+    assert len(space.restrictions) == len(space.prolongations) == 2
+    for P, Rt in zip(space.prolongations, space.restrictions):
+        assert np.array_equal(Rt @ x, P.T @ x)

@@ -87,6 +87,11 @@ class Channel:
     eta_at_quad: sp.csr_matrix  #: line vector → η at the quadrature points (flattened)
     eta_z_at_quad: sp.csr_matrix  #: line vector → η_z at the quadrature points
     ends: tuple[int, int]  #: line DOFs at z = 0 and z = L
+    #: Pᵀ as its own CSR matrix: velocity DOFs → line DOFs (``P.T`` would be a new matrix at every trace)
+    restriction: sp.csr_matrix = attrs.field(init=False)
+
+    def __attrs_post_init__(self):
+        object.__setattr__(self, "restriction", self.prolongation.T.tocsr())
 
     @classmethod
     def build(
@@ -188,7 +193,7 @@ class Channel:
 
     def wall_trace(self, u: np.ndarray) -> np.ndarray:
         """The wall's u_r as a line vector: v = Pᵀ u."""
-        return self.prolongation.T @ u
+        return self.restriction @ u
 
     def interpolate(self, velocity) -> np.ndarray:
         """Velocity DOFs of the interpolant of ``velocity(z, r) -> (u_z, u_r)`` on Ω̂.

@@ -309,7 +309,9 @@ class FluidStep:
         factors).
         """
         t0 = time.perf_counter()
-        rhs = system.rhs[self.free] - self._block_fd.matrix(system.data) @ system.fixed_values
+        rhs = system.rhs[self.free]
+        if system.fixed_values.any():  # only a prescribed wall's ū_r is not zero: no block to build otherwise
+            rhs -= self._block_fd.matrix(system.data) @ system.fixed_values
         self.assembly_s += time.perf_counter() - t0
         x = np.zeros(self.channel.ndofs)
         x[self.fixed] = system.fixed_values
@@ -356,7 +358,7 @@ class FluidStep:
         tested with each line basis function (dyn/cm per unit depth).
         """
         residual = self.pattern.matrix(system.own) @ mean - system.own_rhs
-        return self.channel.prolongation.T @ residual[: self.channel.nu]
+        return self.channel.restriction @ residual[: self.channel.nu]
 
     # -- the energy identity ----------------------------------------------------
     def identity(self, system: FluidSystem, solution: Solution, eta_old: np.ndarray,
