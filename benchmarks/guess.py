@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> None:
     solve = ReusingSolver.solve
 
     def recording(solver, A, b, key=None):
-        again = solver._last_key is (A if key is None else key)  # a sub-iteration's matrix: not a new one
+        again = solver.repeats(A, key)  # a sub-iteration's matrix: not a new one
         history = histories.setdefault(id(solver), [])
         counted = not again and new.get(id(solver), 0) + 1 >= args.first  # this new matrix's number, from 1
         if counted:

@@ -398,6 +398,11 @@ class ReusingSolver:
         self._exhausted = False
         return self._factors
 
+    def repeats(self, A: sp.spmatrix, key=None) -> bool:
+        """True when ``A`` (``key`` standing for it) is the matrix solved just before: a sub-iteration's matrix,
+        not a new one (its solution does not enter the span of new matrices' solutions)."""
+        return self._last_key is (A if key is None else key)
+
     def holds(self, key) -> bool:
         """True when the held factorization is of the matrix ``key`` stands for (compared by identity)."""
         return self._factors is not None and self._matrix is key
@@ -413,7 +418,8 @@ class ReusingSolver:
             self.stats.refactorize, self._factors, self._matrix = False, None, None
             self._span.clear()
             self._single = self.reuse.factors == "single"
-        again, self._last_key, self.last = self._last_key is key, key, A
+        again = self.repeats(A, key)
+        self._last_key, self.last = key, A
         if self.holds(key):
             return self._refined(A, b)
         x = None

@@ -115,9 +115,11 @@ def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
     solver = ReusingSolver(stats, "superlu", Reuse())
     first, second = drifting_matrices(steps=2)
     solver.solve(first, np.ones(400))
+    assert not solver.repeats(second, key="step 2") and solver.repeats(first)
     for k in range(5):  # sub-iterations: one matrix, new right-hand sides
         x = solver.solve(second, np.full(400, k + 1.0), key="step 2")
         assert np.linalg.norm(second @ x - (k + 1.0)) <= 1e-12 * np.sqrt(400) * (k + 1.0)
+        assert solver.repeats(second, key="step 2") and not solver.repeats(second)  # the key stands for it
     assert stats.krylov_solves == 1 and stats.factorizations == 2
 
 
