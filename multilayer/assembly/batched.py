@@ -296,7 +296,7 @@ class BatchedForm:
         return plan
 
     def _slots(self, form, fields: dict, R: np.ndarray, C: np.ndarray):
-        """Where ``form``'s kernel goes in a kernel on slots (R, C): worked out once per form, kind of fields and slots.
+        """Where ``form``'s kernel goes in a kernel on slots (R, C), once per form, kind of fields and slots.
 
         (rows, cols, at, at_t): its active test and trial slots, their
         positions in (R, C), and the transposed positions (a skew part's
