@@ -101,8 +101,8 @@ class Setup:
         if self.fluid is not None:
             fluid = self.fluid.initial_state()
             if wall is not None:
-                P = self.wall.prolongations[LUMEN]
-                eta, v = P.T @ wall.d, P.T @ wall.V
+                R = self.wall.restrictions[LUMEN]
+                eta, v = R @ wall.d, R @ wall.V
             else:
                 eta = np.zeros(self.fluid.line.ndofs)
         return State(0, 0.0, wall, fluid, v, eta)
@@ -128,13 +128,13 @@ class Setup:
     # -- wall quantities ----------------------------------------------------
     def eta(self, state: State, line: int = LUMEN) -> np.ndarray:
         """η on ``line`` in the line's own numbering."""
-        return self.wall.prolongations[line].T @ state.wall.d
+        return self.wall.restrictions[line] @ state.wall.d
 
     def wall_velocity(self, state: State, line: int = LUMEN) -> np.ndarray:
         """v on ``line``: on the lumen the fluid-updated thin velocity when the fluid carries it."""
         if line == LUMEN and state.v is not None:
             return state.v
-        return self.wall.prolongations[line].T @ state.wall.V
+        return self.wall.restrictions[line] @ state.wall.V
 
     def dof_counts(self) -> dict[str, int]:
         out = {}
