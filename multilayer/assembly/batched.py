@@ -127,6 +127,11 @@ def _unit_jets(basis: skfem.CellBasis, inverse: np.ndarray, trial: bool) -> tupl
     return value[..., :, None, :, :], grad[..., :, None, :, :]
 
 
+def _kind(fields: dict) -> tuple:
+    """What a form's active slots can depend on in its fields: their names and the component shapes of the arrays."""
+    return tuple(sorted((k, np.shape(a)[:-2] if np.ndim(a) >= 2 else None) for k, a in fields.items()))
+
+
 def _add(total: np.ndarray, r, c, K: np.ndarray) -> None:
     """total[r, c] += K, in place (positions along the first two axes, each as :func:`_run` gives them)."""
     if isinstance(r, slice) or isinstance(c, slice):
@@ -235,7 +240,7 @@ class BatchedForm:
         if skew:
             used = self.active(form, fields)
             return used | used.T
-        key = (form, tuple(sorted((k, np.shape(a)[:-2] if np.ndim(a) >= 2 else None) for k, a in fields.items())))
+        key = (form, _kind(fields))
         used = self._active.get(key)
         if used is None:
             rng = np.random.default_rng(0)
@@ -302,8 +307,7 @@ class BatchedForm:
         positions in (R, C), and the transposed positions (a skew part's
         −½ Kᵀ); None when the form uses no slot.
         """
-        kind = (form, tuple(sorted((k, np.shape(a)[:-2] if np.ndim(a) >= 2 else None) for k, a in fields.items())),
-                R.tobytes(), C.tobytes())
+        kind = (form, _kind(fields), R.tobytes(), C.tobytes())
         if kind not in self._slots_made:
             used = self.active(form, fields)
             rows, cols = np.flatnonzero(used.any(axis=1)), np.flatnonzero(used.any(axis=0))
