@@ -9,7 +9,10 @@ one JSON object: unknowns (fluid + wall), median seconds per step (the
 first step, which factorizes, left out; reported apart), its phases, the
 mean step (which counts the steps that refactorize),
 factorizations and Krylov iterations, a fresh factorization of the fluid
-system timed in the same process, and peak RSS.  At the end it prints the
+system timed in the same process — also in GMRES iterations of the run
+(``fresh_factorization_in_iterations``: what ``[solver]
+factorization_cost`` stands for on this machine) — and peak RSS.  At the
+end it prints the
 least-squares exponent p of time per step ∝ N^p over the meshes with at
 least ``--fit-from`` unknowns.
 
@@ -91,6 +94,10 @@ def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = Fals
     if fresh_s:
         row["ratio_to_one_fluid_factorization"] = row["median.step"] / fresh_s
         row["mean_ratio_to_one_fluid_factorization"] = row["mean.step"] / fresh_s
+        iterations = sum(s["krylov_iterations"] for s in warm)
+        if iterations:  # the factorization in GMRES iterations (each with its share of the guess): what
+            # [solver] factorization_cost stands for on this machine
+            row["fresh_factorization_in_iterations"] = fresh_s * iterations / sum(s["krylov"] for s in warm)
     if colamd_s:
         row["ratio_to_one_colamd_factorization"] = row["median.step"] / colamd_s
     if "double" in times:  # the run's factors are single: also against a double-precision factorization

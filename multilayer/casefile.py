@@ -93,6 +93,11 @@ SOLVER = (
     Param("factors", type=str, default=Reuse().factors, choices=FACTORS,
           doc="precision of a changing matrix's factorizations: 'double', or 'single' (half their memory, "
               "faster; every solve by GMRES on them to the same tolerance; SuperLU only)"),
+    Param("factorization_cost", default=None, gt=0.0,
+          doc="a factorization's cost in GMRES iterations: the iterations held factors cost beyond what they "
+              "needed when young are added up, and at this sum they are replaced (reuse = 'krylov'; default: "
+              "14 up to 70k unknowns, then growing like their square root; a very large value: only at "
+              "max_iterations)"),
     Param("threads", type=int, default=1, ge=0,
           doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
     Param("max_displacement", "", "R", default=0.5, gt=0.0,
@@ -379,7 +384,7 @@ class _Validator:
         parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
         parts["reuse"] = self.part("solver", mark,
                                    lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"],
-                                                 solver["factors"]))
+                                                 solver["factors"], solver["factorization_cost"]))
         parts["threads"] = self.part("solver", mark, lambda: solver["threads"])
         case = Case(**parts)
         self.add(self.objections(case))

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from multilayer.krylov import SolutionSpan, Workspace, preconditioned_gmres
+from multilayer.krylov import GMRESResult, SolutionSpan, Workspace, preconditioned_gmres
 from multilayer.ordering import nested_dissection, pattern_key
 
 
@@ -304,12 +304,20 @@ class Reuse:
         too inaccurate for GMRES to converge from, that matrix is factorized
         in double and the solver stays double until the next checkpoint
         (counted in ``fallbacks``).
+    factorization_cost : float or None
+        What a factorization costs, in GMRES iterations: the held factors
+        are replaced once the iterations they cost beyond what they needed
+        when young add up to this (the break-even rule of renting against
+        buying; see :class:`ReusingSolver`).  A very large value leaves
+        only ``max_iterations``.  None (the default): :func:`factorization_cost`
+        of the matrix's size.
     """
 
     mode: str = "krylov"
     max_iterations: int = 8
     tolerance: float = 1e-12
     factors: str = "double"
+    factorization_cost: float | None = None
 
     def __attrs_post_init__(self):
         if self.mode not in REUSE_MODES:
@@ -320,6 +328,25 @@ class Reuse:
             raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance!r}")
         if self.factors not in FACTORS:
             raise ValueError(f"factors {self.factors!r} is not one of {FACTORS}")
+        if self.factorization_cost is not None and not self.factorization_cost > 0.0:
+            raise ValueError(f"factorization_cost must be > 0 (GMRES iterations), got {self.factorization_cost!r}")
+
+
+def factorization_cost(n: int) -> float:
+    """A fresh factorization of an n-unknown system, in GMRES iterations: 14 up to 70k unknowns, then ∝ √n.
+
+    Measured on this project's machines for the fluid's Navier–Stokes system
+    in a coupled run (the factorization against a GMRES iteration with its
+    share of the guess, `benchmarks/scaling.py`): 13–15 at 18k unknowns,
+    16–17 at 69k, 26–27 at 277k, 48–55 at 1.11M (docs/performance.md, "When
+    to refactorize").  A nested-dissection factorization of a 2D mesh grows
+    like n^1.5 and a back-substitution like n log n; over this range the
+    measured ratio grows like √n above 70k.
+
+    >>> factorization_cost(20_000), round(factorization_cost(1_120_000))
+    (14.0, 56)
+    """
+    return 14.0 * max(1.0, n / 70_000) ** 0.5
 
 
 class ReusingSolver:
@@ -337,6 +364,28 @@ class ReusingSolver:
     its factorization is held instead.
     After a solve that took all ``max_iterations``, the next new matrix is
     factorized without trying GMRES first.
+
+    Factors that still converge can still be worth replacing: on the
+    quick-start case at 22k unknowns, GMRES on the factors of step 30 needs
+    5 iterations at step 45, 4 at step 70 and 3 at step 89, where the
+    factors of the step before need 3, 2 and 1 — a few iterations a step,
+    for as long as the run goes on, and the bound never sees it.  So the solver
+    measures how well its factors fit.  The first Krylov solve with a
+    factorization (on the next new matrix) gives its rate, the orders of
+    magnitude λ = log₁₀(‖r₀‖/‖r‖)/k its k iterations gained.  Every later
+    one is compared with what that rate would need for its own start,
+    ⌈log₁₀(‖r₀‖/(tol ‖b‖))/λ⌉ iterations; the iterations beyond it add up,
+    and when the sum reaches ``reuse.factorization_cost`` — a
+    factorization's price in GMRES iterations (:func:`factorization_cost`
+    of the size unless the case sets it) — the next new matrix is
+    factorized.  This is the break-even rule of renting against buying: it
+    never pays more than about twice what the best schedule in hindsight
+    would, and needs no guess of how long the run lasts (replaying the
+    quick-start case's systems at 22k unknowns: 10 % above that best
+    schedule, where the bound alone is 22 % above it; docs/performance.md,
+    "When to refactorize").  It uses counts and residual norms only, never
+    a clock, so two runs of one case refactorize at the same steps.
+
     A matrix solved again right after (the same ``key``: the sub-iterations of
     an implicit partitioned coupler) is factorized at its second solve, so
     its further solves are back-substitutions.
@@ -377,6 +426,8 @@ class ReusingSolver:
         self._factors: Factorized | None = None
         self._span = SolutionSpan(self.GUESS_SPAN)  # the latest new matrices' solutions: where GMRES starts
         self._exhausted = False
+        self._rate: float | None = None  # orders of magnitude a GMRES iteration gained with the held factors young
+        self._excess = 0.0  # GMRES iterations the held factors cost beyond that rate's
         self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
         self._single = reuse.factors == "single"  # until a fallback
 
@@ -395,7 +446,7 @@ class ReusingSolver:
             self._factors = factorize(A, self.stats, self.backend)
         self._matrix = A if key is None else key
         self._shape = A.shape
-        self._exhausted = False
+        self._exhausted, self._rate, self._excess = False, None, 0.0
         return self._factors
 
     def repeats(self, A: sp.spmatrix, key=None) -> bool:
@@ -425,9 +476,12 @@ class ReusingSolver:
         x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
         if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
-                and not self._exhausted):
-            x, iterations = self._gmres(A, b, guess=True)
-            self._exhausted = iterations >= self.reuse.max_iterations
+                and not self._exhausted and not self._stale()):
+            result = self._gmres(A, b, guess=True)
+            x = result.x
+            self._exhausted = result.iterations >= self.reuse.max_iterations
+            if x is not None:
+                self._weigh(result, b)
         if x is None:
             self.factorize(A, key)
             x = self._refined(A, b)
@@ -435,18 +489,40 @@ class ReusingSolver:
             self._span.add(x)
         return x
 
-    def _gmres(self, A: sp.spmatrix, b: np.ndarray, guess: bool) -> tuple[np.ndarray | None, int]:
+    def _gmres(self, A: sp.spmatrix, b: np.ndarray, guess: bool) -> GMRESResult:
         """GMRES on the held factors (from the span's guess if ``guess``, else 0), counted (iterations, seconds
         with the guess's, solves that converged)."""
         t0 = time.perf_counter()
         x0, r0 = (self._span.start(A, b) if guess else None) or (None, None)
-        x, iterations = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance,
-                                             self.reuse.max_iterations, x0, self._workspace, r0)
-        self.stats.krylov_iterations += iterations
+        result = preconditioned_gmres(A, b, self._factors.solve, self.reuse.tolerance, self.reuse.max_iterations,
+                                      x0, self._workspace, r0)
+        self.stats.krylov_iterations += result.iterations
         self.stats.krylov_s += time.perf_counter() - t0
-        if x is not None:
+        if result.x is not None:
             self.stats.krylov_solves += 1
-        return x, iterations
+        return result
+
+    def _weigh(self, result: GMRESResult, b: np.ndarray) -> None:
+        """Add what a converged Krylov solve of a new matrix says about the held factors (see the class doc).
+
+        The first solve with them sets the rate λ (orders of magnitude an
+        iteration); each later one adds its iterations beyond
+        ⌈log₁₀(‖r₀‖/(tol ‖b‖))/λ⌉ (at least 1: GMRES always does one) to
+        the excess.
+        """
+        if not (result.start > 0.0 and result.end > 0.0):  # b = 0, or an exact start: nothing to learn
+            return
+        if self._rate is None:
+            self._rate = max(np.log10(result.start / result.end), 1e-3) / result.iterations
+            return
+        needed = np.log10(result.start / (self.reuse.tolerance * np.linalg.norm(b)))
+        expected = max(1, int(np.ceil(needed / self._rate - 1e-9)))
+        self._excess += max(result.iterations - expected, 0)
+
+    def _stale(self) -> bool:
+        """Whether the held factors have cost, beyond their young rate, what a fresh factorization costs."""
+        cost = self.reuse.factorization_cost
+        return self._excess >= (factorization_cost(self._shape[0]) if cost is None else cost)
 
     def _fall_back(self) -> None:
         """From now on, double-precision factors (single ones did not serve: counted in ``fallbacks``)."""
@@ -467,7 +543,7 @@ class ReusingSolver:
         the solver stays double until the next checkpoint (a ``fallback``).
         """
         if self._single:
-            x, _ = self._gmres(A, b, guess=False)
+            x = self._gmres(A, b, guess=False).x
             if x is not None:
                 return x
             self._fall_back()

@@ -321,6 +321,8 @@ MISTAKES = [
     ("solver", ("[output]", '[solver]\nlinear = "umfpak"\n\n[output]'), [], ["solver.linear = 'umfpak'"]),
     ("solver-factors", None, ["--set", "solver.factors=singel"],
      ["solver.factors = 'singel'", "did you mean 'single'?"]),
+    ("solver-factorization-cost", None, ["--set", "solver.factorization_cost=0"],
+     ["solver.factorization_cost = 0: expected a number > 0.0 (from --set)"]),
     ("missing-geometry", ("[geometry]\nlength = 6.0\nradius = 0.5\n", ""), [], ["geometry: missing"]),
     ("toml-syntax", ("nz = 6", "nz = = 6"), [], ["invalid TOML", "line 8"]),
     ("unused-load", None, ["--set", "loads.inlet=100"],

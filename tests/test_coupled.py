@@ -60,7 +60,7 @@ def test_full_resolution_koiter_thick_ledger_and_a2(tmp_path):
     code, summary, s = run("pulse-koiter-thick", tmp_path / "kt")
     assert code == 0 and summary["steps"] == 120
     assert summary["factorizations"]["wall"] == 1
-    # measured: total ≤ 5.3e-13, A1 ≤ 1.2e-12, A2 ≤ 4.8e-13 (a38cdfe; Krylov solves to 1e-12: docs/performance.md)
+    # measured: total ≤ 3.6e-13, A1 ≤ 1.1e-12, A2 ≤ 3.7e-13 (Krylov solves to 1e-12: docs/performance.md)
     assert np.all(s["energy.relative_residual"] <= 1e-9)
     assert np.all(s["energy.relative_residual.A1"] <= 1e-11)
     assert np.all(s["energy.relative_residual.A2"] <= 1e-11)

@@ -80,11 +80,43 @@ def test_gmres_pays_one_back_substitution_per_iteration_and_an_exhausted_bound_r
     assert sum(1 for its, f, _ in log[:-1] if f == 0 and its == 5) >= 2, log  # the rule was exercised
 
 
+def test_factors_that_cost_iterations_are_replaced_at_the_break_even(monkeypatch):
+    """Factors that still converge but need more iterations than when they were young: the iterations beyond
+    what their first solve's rate would need add up, and at ``factorization_cost`` the next matrix is
+    factorized.  GMRES from 0 on matrices drifting by 0.3 % a step (bound 40, never reached): a fresh
+    factorization's first solve takes 4 iterations, later ones 5, so with a cost of 4 every factorization
+    serves 5 solves (1 + 1 + 1 + 1 extra); by default (400 unknowns: a cost of 14) 10, the later ones at 6
+    iterations (1 + 1 + 1 + 1 + 2 × 5 extra); with a cost beyond reach there is one factorization and the
+    iterations climb to 8."""
+    monkeypatch.setattr(SolutionSpan, "start", lambda self, A, b: None)
+    b = np.ones(400)
+    runs = {}
+    for cost in (4.0, None, 1e9):
+        stats = SolverStats()
+        solver = ReusingSolver(stats, "superlu", Reuse("krylov", 40, 1e-12, factorization_cost=cost))
+        iterations = []
+        for A in drifting_matrices(drift=0.003, steps=30):
+            before = (stats.krylov_iterations, stats.factorizations)
+            x = solver.solve(A, b)
+            assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
+            iterations.append(-1 if stats.factorizations > before[1] else stats.krylov_iterations - before[0])
+        runs[cost] = (stats.factorizations, iterations)
+    factorizations, iterations = runs[4.0]
+    assert factorizations == 5 and iterations == [-1, 4, 5, 5, 5, 5] * 5, iterations
+    assert multilayer.linsolve.factorization_cost(400) == 14.0
+    factorizations, iterations = runs[None]
+    assert factorizations == 3 and iterations[:22] == [-1, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6] * 2, iterations
+    factorizations, iterations = runs[1e9]
+    assert factorizations == 1 and max(iterations) == 8 and sum(iterations) > sum(runs[4.0][1]) + 40
+
+
 def test_reuse_is_validated():
     with pytest.raises(ValueError, match="reuse mode"):
         Reuse("sometimes")
     with pytest.raises(ValueError, match="max_iterations"):
         Reuse("krylov", 0)
+    with pytest.raises(ValueError, match="factorization_cost"):
+        Reuse(factorization_cost=0.0)
 
 
 @pytest.mark.parametrize("coupler, factors", [('{model="kinematic-splitting"}', "double"),
@@ -204,8 +236,8 @@ def test_the_start_carries_the_guess_residual_and_gmres_from_it_gives_the_same_a
             x0, r0 = start
             assert np.array_equal(x0, span.guess(Ak, b))
             assert np.linalg.norm(r0 - (b - Ak @ x0)) <= 1e-14 * np.linalg.norm(b)
-            given, its_given = preconditioned_gmres(Ak, b, lu.solve, 1e-12, 20, x0, residual=r0)
-            formed, its_formed = preconditioned_gmres(Ak, b, lu.solve, 1e-12, 20, x0)
+            given, its_given, *_ = preconditioned_gmres(Ak, b, lu.solve, 1e-12, 20, x0, residual=r0)
+            formed, its_formed, *_ = preconditioned_gmres(Ak, b, lu.solve, 1e-12, 20, x0)
             assert its_given == its_formed >= 1
             assert np.linalg.norm(given - formed) <= 1e-11 * np.linalg.norm(formed)
             assert np.linalg.norm(b - Ak @ given) <= 1e-12 * np.linalg.norm(b)
