@@ -55,6 +55,9 @@ class SolverStats:
     #: single-precision factorizations that did not serve (singular in float32, or GMRES could not converge
     #: from them), replaced by double ones until the next checkpoint (``[solver] factors = "single"``)
     fallbacks: int = 0
+    #: the price of a factorization in GMRES iterations that :class:`ReusingSolver` refactorizes at (the
+    #: case's ``factorization_cost``, or :func:`factorization_cost` of the system's size); None before any
+    factorization_cost: float | None = None
     #: set by the runner after a checkpoint: the system's next solve factorizes afresh (in the configured
     #: precision, a fallback forgotten), as the first solve of a run resumed from that checkpoint must, so the
     #: two runs stay bit-identical
@@ -447,6 +450,8 @@ class ReusingSolver:
         self._matrix = A if key is None else key
         self._shape = A.shape
         self._exhausted, self._rate, self._excess = False, None, 0.0
+        cost = self.reuse.factorization_cost
+        self.stats.factorization_cost = factorization_cost(A.shape[0]) if cost is None else cost
         return self._factors
 
     def repeats(self, A: sp.spmatrix, key=None) -> bool:
@@ -521,8 +526,7 @@ class ReusingSolver:
 
     def _stale(self) -> bool:
         """Whether the held factors have cost, beyond their young rate, what a fresh factorization costs."""
-        cost = self.reuse.factorization_cost
-        return self._excess >= (factorization_cost(self._shape[0]) if cost is None else cost)
+        return self._excess >= self.stats.factorization_cost
 
     def _fall_back(self) -> None:
         """From now on, double-precision factors (single ones did not serve: counted in ``fallbacks``)."""

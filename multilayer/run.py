@@ -352,10 +352,11 @@ def _factorizations(setup: Setup | None) -> dict[str, int]:
     return out
 
 
-def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
+def _krylov(setup: Setup | None) -> dict[str, dict[str, int | float]]:
     """Krylov solves and iterations per system that had any (``[solver] reuse = "krylov"``, or
     ``factors = "single"``), the iterative-refinement sweeps after direct solves and the fallbacks from
-    single- to double-precision factors where there were any."""
+    single- to double-precision factors where there were any, and the factorization's price in GMRES
+    iterations the system was refactorized at."""
     if setup is None:
         return {}
     stats = dict(setup.solvers)
@@ -369,6 +370,8 @@ def _krylov(setup: Setup | None) -> dict[str, dict[str, int]]:
         if getattr(st, "fallbacks", 0):
             row["fallbacks"] = st.fallbacks
         if any(row.values()):
+            if getattr(st, "factorization_cost", None) is not None:  # what the reuse rule refactorized at
+                row["factorization_cost"] = round(st.factorization_cost, 3)
             out[name] = row
     return out
 

@@ -133,6 +133,7 @@ def test_coupled_run_with_krylov_matches_the_direct_run(tmp_path, coupler, facto
     system = "fluid" if "splitting" in coupler else "monolithic"
     assert krylov["factorizations"][system] < direct["factorizations"][system] == 40
     assert krylov["krylov"][system]["solves"] > 0
+    assert krylov["krylov"][system]["factorization_cost"] == 14.0  # the default below 70k unknowns
     assert "fallbacks" not in krylov["krylov"][system]  # single-precision factors sufficed
     for key in ("eta_z1", "eta_z3", "q_in", "kinetic.fluid", "energy.total"):
         d = np.array([float(r[key]) for r in rows_d])
