@@ -375,7 +375,7 @@ class ReusingSolver:
     for as long as the run goes on, and the bound never sees it.  So the solver
     measures how well its factors fit.  The first Krylov solve with a
     factorization (on the next new matrix) gives its rate, the orders of
-    magnitude λ = log₁₀(‖r₀‖/‖r‖)/k its k iterations gained.  Every later
+    magnitude λ = log₁₀(‖r₀‖/‖r‖)/k each of its k iterations gained.  Every later
     one is compared with what that rate would need for its own start,
     ⌈log₁₀(‖r₀‖/(tol ‖b‖))/λ⌉ iterations; the iterations beyond it add up,
     and when the sum reaches ``reuse.factorization_cost`` — a
