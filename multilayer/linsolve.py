@@ -381,9 +381,10 @@ class ReusingSolver:
     and when the sum reaches ``reuse.factorization_cost`` — a
     factorization's price in GMRES iterations (:func:`factorization_cost`
     of the size unless the case sets it) — the next new matrix is
-    factorized.  This is the break-even rule of renting against buying: it
-    never pays more than about twice what the best schedule in hindsight
-    would, and needs no guess of how long the run lasts (replaying the
+    factorized.  This is the break-even rule of renting against buying:
+    where a factor's extra iterations only grow with its age it pays at
+    most about twice what the best schedule in hindsight would, and it needs
+    no guess of how long the run lasts (replaying the
     quick-start case's systems at 22k unknowns: 10 % above that best
     schedule, where the bound alone is 22 % above it; docs/performance.md,
     "When to refactorize").  It uses counts and residual norms only, never
