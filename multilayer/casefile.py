@@ -93,7 +93,7 @@ SOLVER = (
     Param("factors", type=str, default=Reuse().factors, choices=FACTORS,
           doc="precision of a changing matrix's factorizations: 'double', or 'single' (half their memory, "
               "faster; every solve by GMRES on them to the same tolerance; SuperLU only)"),
-    Param("factorization_cost", default=None, gt=0.0,
+    Param("factorization_cost", default=Reuse().factorization_cost, gt=0.0,
           doc="a factorization's cost in GMRES iterations: the iterations held factors cost beyond what they "
               "needed when young are added up, and at this sum they are replaced (reuse = 'krylov'; default: "
               "14 up to 70k unknowns, then growing like their square root; a very large value: only at "

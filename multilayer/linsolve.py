@@ -19,6 +19,7 @@ refactorized only when GMRES needs more than a bound of iterations
 from __future__ import annotations
 
 import importlib.util
+import math
 import time
 from collections.abc import Callable
 
@@ -429,9 +430,9 @@ class ReusingSolver:
         self._last_key = None
         self._factors: Factorized | None = None
         self._span = SolutionSpan(self.GUESS_SPAN)  # the latest new matrices' solutions: where GMRES starts
-        self._exhausted = False
         self._rate: float | None = None  # orders of magnitude a GMRES iteration gained with the held factors young
-        self._excess = 0.0  # GMRES iterations the held factors cost beyond that rate's
+        #: GMRES iterations the held factors cost beyond that rate's (inf after a solve that needed all of them)
+        self._excess = 0.0
         self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
         self._single = reuse.factors == "single"  # until a fallback
 
@@ -450,7 +451,7 @@ class ReusingSolver:
             self._factors = factorize(A, self.stats, self.backend)
         self._matrix = A if key is None else key
         self._shape = A.shape
-        self._exhausted, self._rate, self._excess = False, None, 0.0
+        self._rate, self._excess = None, 0.0
         cost = self.reuse.factorization_cost
         self.stats.factorization_cost = factorization_cost(A.shape[0]) if cost is None else cost
         return self._factors
@@ -482,12 +483,13 @@ class ReusingSolver:
         x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
         if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
-                and not self._exhausted and not self._stale()):
+                and not self._stale()):
             result = self._gmres(A, b, guess=True)
             x = result.x
-            self._exhausted = result.iterations >= self.reuse.max_iterations
             if x is not None:
                 self._weigh(result, b)
+            if result.iterations >= self.reuse.max_iterations:  # the drift only grows: the next would fail too
+                self._excess = math.inf
         if x is None:
             self.factorize(A, key)
             x = self._refined(A, b)
@@ -526,7 +528,8 @@ class ReusingSolver:
         self._excess += max(result.iterations - expected, 0)
 
     def _stale(self) -> bool:
-        """Whether the held factors have cost, beyond their young rate, what a fresh factorization costs."""
+        """Whether the held factors have cost, beyond their young rate, what a fresh factorization costs
+        (or took all ``max_iterations`` in their latest solve)."""
         return self._excess >= self.stats.factorization_cost
 
     def _fall_back(self) -> None:
