@@ -32,12 +32,13 @@ import sys
 import time
 from pathlib import Path
 
-from multilayer.casefile import load_case
-from multilayer.linsolve import SolverStats, factorize
-from multilayer.registry import Registry
-from multilayer.setup import Setup
-from multilayer.threads import blas_threads
-from multilayer.variants import split_values
+from multilayer.case.casefile import load_case
+from multilayer.case.keys import split_values
+from multilayer.coupling.build import prepare
+from multilayer.numerics.linsolve import SolverStats, factorize
+from multilayer.numerics.threads import blas_threads
+from multilayer.plugin.registry import Registry
+from multilayer.scene.setup import Setup
 
 CASE = Path(__file__).parents[1] / "cases" / "pulse-koiter-thick.toml"
 COUPLERS = ('"kinematic-splitting"', '{model="kinematic-splitting",beta=1}',
@@ -108,10 +109,10 @@ def main(argv: list[str] | None = None) -> int:
     for coupler in split_values(args.couplers):
         for sets in variants:
             case = load_case(args.case, [*args.sets, *sets, f"coupler={coupler}"], registry)
-            setup = Setup.build(case, registry)
-            state = setup.coupler.initial_state(setup)
+            setup, coupler = prepare(case, registry)
+            state = coupler.initial_state(setup)
             label = " ".join([coupler, *sets])
-            runs[label] = {"setup": setup, "steps": setup.coupler.evolve(setup, state), "samples": [],
+            runs[label] = {"setup": setup, "steps": coupler.evolve(setup, state), "samples": [],
                            "coupler": coupler, "sets": sets}
     fresh = []
     reference = next(iter(runs.values()))["setup"]

@@ -1,7 +1,7 @@
 """Seconds per phase of one fluid step (A2) against the mesh size, printed as JSON.
 
 Not a test: nothing is asserted.  For each mesh and each linear solver
-installed (``multilayer.linsolve.BACKENDS``) it times
+installed (``multilayer.numerics.linsolve.BACKENDS``) it times
 
 * ``ns-coupled``: Navier–Stokes, coupled wall with a dummy thin layer
   (Robin mass ρ₁h ∫vψ, a given v^{n+½}), a deformed channel: the Oseen
@@ -32,9 +32,9 @@ import numpy as np
 import scipy
 from skfem import BilinearForm, asm
 
-from multilayer.interfaces import Domain, Interface
-from multilayer.linsolve import BACKENDS
-from multilayer.timescheme import SCHEMES
+from multilayer.fluid.contract import Domain, Interface
+from multilayer.numerics.linsolve import BACKENDS
+from multilayer.numerics.timescheme import SCHEMES
 from multilayer_plugins.channel import NavierStokes, Stokes
 
 L, R, MU, RHO, DT = 6.0, 0.5, 0.035, 1.0, 1e-4

@@ -2,14 +2,14 @@
 
 Not a test: nothing is asserted.  One coupler runs the case (by default the
 quick-start pulse, kinematic splitting) and every new matrix its
-:class:`~multilayer.linsolve.ReusingSolver` solves is also handed to the
+:class:`~multilayer.numerics.linsolve.ReusingSolver` solves is also handed to the
 candidates, each built from the run's own earlier solutions:
 
 * ``polynomial-p``: the value at the next step of the polynomial of degree p
   through the last p + 1 solutions (p = 1: 2xⁿ − x^{n−1}; p = 2, the guess
   of earlier rounds: 3xⁿ − 3x^{n−1} + x^{n−2});
 * ``span-k``: the least-residual combination of the last k solutions
-  (:class:`multilayer.krylov.SolutionSpan`, the solver's guess with k =
+  (:class:`multilayer.numerics.krylov.SolutionSpan`, the solver's guess with k =
   ``ReusingSolver.GUESS_SPAN``).
 
 For each it prints the median and the largest relative residual
@@ -30,12 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from multilayer.casefile import load_case
-from multilayer.krylov import SolutionSpan
-from multilayer.linsolve import ReusingSolver
-from multilayer.registry import Registry
-from multilayer.setup import Setup
-from multilayer.threads import blas_threads
+from multilayer.case.casefile import load_case
+from multilayer.coupling.build import prepare
+from multilayer.numerics.krylov import SolutionSpan
+from multilayer.numerics.linsolve import ReusingSolver
+from multilayer.numerics.threads import blas_threads
+from multilayer.plugin.registry import Registry
 
 CASE = Path(__file__).parents[1] / "cases" / "pulse-koiter-thick.toml"
 DEGREES = (1, 2, 3, 4, 5)
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> None:
                      f"extrapolation needs {max(DEGREES) + 1} earlier solutions)")
     registry = Registry.load()
     case = load_case(args.case, args.set, registry)
-    setup = Setup.build(case, registry)
+    setup, coupler = prepare(case, registry)
     histories: dict[int, list[np.ndarray]] = {}  # per solver: its new matrices' solutions, newest last
     residuals: dict[str, list[float]] = {}
     iterations: list[int] = []
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> None:
     ReusingSolver.solve = recording
     try:
         with blas_threads(1):
-            steps = setup.coupler.evolve(setup, setup.coupler.initial_state(setup))
+            steps = coupler.evolve(setup, coupler.initial_state(setup))
             for _ in range(args.steps):
                 next(steps)
     finally:

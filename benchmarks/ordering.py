@@ -5,7 +5,7 @@ quick-start case (``cases/pulse-koiter-thick.toml``, kinematic splitting)
 to get a fluid matrix of a moving wall (free DOFs), then factorizes it
 
 * ``nested-dissection``: the default backend ``superlu`` — METIS nested
-  dissection of A + Aᵀ (:mod:`multilayer.ordering`, its time reported
+  dissection of A + Aᵀ (:mod:`multilayer.numerics.ordering`, its time reported
   apart: a run pays it once per pattern), SuperLU in that order with
   threshold pivoting 1e-3;
 * ``colamd``: ``superlu-colamd``, SuperLU's own column ordering;
@@ -36,15 +36,15 @@ CASE = Path(__file__).parents[1] / "cases" / "pulse-koiter-thick.toml"
 
 
 def fluid_matrix(mesh: str):
-    from multilayer.casefile import load_case
-    from multilayer.registry import Registry
-    from multilayer.setup import Setup
+    from multilayer.case.casefile import load_case
+    from multilayer.coupling.build import prepare
+    from multilayer.plugin.registry import Registry
 
     nz, nr = (int(k) for k in mesh.split("x"))
     registry = Registry.load()
     case = load_case(CASE, [f"mesh.nz={nz}", f"mesh.nr={nr}", "time.end=1"], registry)
-    setup = Setup.build(case, registry)
-    run = setup.coupler.evolve(setup, setup.coupler.initial_state(setup))
+    setup, coupler = prepare(case, registry)
+    run = coupler.evolve(setup, coupler.initial_state(setup))
     next(run), next(run)
     return setup.fluid.discrete.last_matrix.tocsc()
 
@@ -64,9 +64,9 @@ def measure(A, factor, repeat: int) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from multilayer.linsolve import _SuperLU
-    from multilayer.ordering import nested_dissection
-    from multilayer.threads import blas_threads
+    from multilayer.numerics.linsolve import _SuperLU
+    from multilayer.numerics.ordering import nested_dissection
+    from multilayer.numerics.threads import blas_threads
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", nargs="+", default=["120x16", "240x32", "480x64"], metavar="NZxNR")

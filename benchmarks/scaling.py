@@ -51,21 +51,24 @@ COLAMD_LIMIT = 400_000
 
 def one(mesh: str, steps: int, sets: list[str], fresh: bool, colamd: bool = False) -> dict:
     """Run ``steps`` steps on ``mesh`` in this process; the row to print."""
-    from multilayer.casefile import load_case
-    from coupled_step import fresh_factorizations_s  # this script's folder: the fresh factorizations of both
-    from multilayer.registry import Registry
-    from multilayer.setup import Setup
-    from multilayer.threads import blas_threads
+    from coupled_step import (
+        fresh_factorizations_s,  # this script's folder: the fresh factorizations of both
+    )
+
+    from multilayer.case.casefile import load_case
+    from multilayer.coupling.build import prepare
+    from multilayer.numerics.threads import blas_threads
+    from multilayer.plugin.registry import Registry
 
     nz, nr = (int(k) for k in mesh.split("x"))
     registry = Registry.load()
     case = load_case(CASE, [f"mesh.nz={nz}", f"mesh.nr={nr}", "time.end=1", *sets], registry)
     with blas_threads(case.threads):
         t0 = time.perf_counter()
-        setup = Setup.build(case, registry)
-        state = setup.coupler.initial_state(setup)
+        setup, coupler = prepare(case, registry)
+        state = coupler.initial_state(setup)
         build_s = time.perf_counter() - t0
-        run = setup.coupler.evolve(setup, state)
+        run = coupler.evolve(setup, state)
         samples = []
         for _ in range(steps):
             before = {**_counters(setup), **_kernel()}

@@ -32,7 +32,7 @@ The checks (:data:`CHECKS`):
 ``coupled-run``
     a short pressure pulse through a coarse channel (:data:`SCENE`, the
     layer on the lumen, or on a ``wave-membrane`` when it is thick) runs
-    through :func:`multilayer.run.run_case` and its energy ledger closes:
+    through :func:`multilayer.run.loop.run_case` and its energy ledger closes:
     ``summary.json`` energy.max_relative_residual ≤ :data:`LEDGER_TOL`.
 
 The parameters are those given, else the record's ``example``, else values
@@ -50,11 +50,17 @@ from typing import Any
 
 import attrs
 
-from multilayer.interfaces import Layer
-from multilayer.layer_checks import abstract_problem, essential_problems, matrix_problems, raised, type_problem
-from multilayer.problems import CaseError, check_params, check_value, describe
-from multilayer.records import LayerPlugin, Param
-from multilayer.registry import Registry
+from multilayer.plugin.problems import CaseError, check_params, check_value, describe
+from multilayer.plugin.records import LayerPlugin, Param
+from multilayer.plugin.registry import Registry
+from multilayer.wall.checks import (
+    abstract_problem,
+    essential_problems,
+    matrix_problems,
+    raised,
+    type_problem,
+)
+from multilayer.wall.layer import Layer
 
 __all__ = ["CHECKS", "CheckResult", "LayerConformance", "assert_layer_conforms", "check_layer", "example_params"]
 
@@ -101,7 +107,7 @@ class CheckResult:
 def example_params(record: LayerPlugin) -> dict[str, Any]:
     """The record's ``example``, or a value inside the bounds for every required parameter.
 
-    >>> from multilayer.records import LayerPlugin, Param
+    >>> from multilayer.plugin.records import LayerPlugin, Param
     >>> record = LayerPlugin("x", dict, (Param("density", gt=0.0), Param("poisson", gt=-1.0, lt=0.5),
     ...                                  Param("cells", type=int, ge=1), Param("viscosity", default=0.0)))
     >>> example_params(record)
@@ -192,8 +198,8 @@ def _check_schema(subject: _Subject, workdir: Path) -> list[str]:
 
 def _small_spaces(layer: Layer) -> list[tuple[int, Any]]:
     """(order, space) for orders 1 and 2: a line of :data:`SMALL` cells, or the band of a small wall."""
-    from multilayer.spaces import make_line_space
-    from multilayer.wall import WallSpace
+    from multilayer.geometry.spaces import make_line_space
+    from multilayer.wall.stack import WallSpace
 
     spaces = []
     for order in (1, 2):
@@ -254,8 +260,8 @@ def scene(name: str, params: Mapping[str, Any], thin: bool) -> dict[str, Any]:
 
 
 def _check_coupled_run(subject: _Subject, workdir: Path) -> list[str]:
-    from multilayer.casefile import validate_data
-    from multilayer.run import run_case
+    from multilayer.case.casefile import validate_data
+    from multilayer.run.loop import run_case
 
     layer, _ = subject.built()
     if layer is None:

@@ -1,4 +1,4 @@
-"""Measure the peak memory of a run per unknown: the constant of ``multilayer.resources``.
+"""Measure the peak memory of a run per unknown: the constant of ``multilayer.case.resources``.
 
 Runs a bundled coupled case (default ``cases/pulse-koiter-thick.toml``: Navier–Stokes,
 a Koiter shell on a thick band) for a few steps at two or more mesh sizes,
@@ -12,7 +12,7 @@ each in a fresh process, and prints one JSON line per run:
     python scripts/memory_per_dof.py                                   # the numbers of docs/case-files.md
     python scripts/memory_per_dof.py --meshes 60x8 240x32 --couplers kinematic-splitting monolithic --orders 1 2
 
-Not a test: nothing is asserted.  ``multilayer.resources.BYTES_PER_DOF`` is
+Not a test: nothing is asserted.  ``multilayer.case.resources.BYTES_PER_DOF`` is
 the largest ``bytes_per_dof`` measured, rounded up.
 """
 
@@ -39,8 +39,8 @@ def resident_bytes() -> float:
 
 def child(case: str, nz: int, nr: int, order: int, coupler: str, steps: int) -> None:
     """One run in this process; prints its JSON line."""
-    from multilayer.casefile import load_case
-    from multilayer.run import run_case
+    from multilayer.case.casefile import load_case
+    from multilayer.run.loop import run_case
 
     loaded = load_case(case, [f"mesh.nz={nz}", f"mesh.nr={nr}", f"mesh.order={order}", f"coupler={coupler}",
                               "time.dt=1e-4", f"time.end={steps * 1e-4!r}", "output.every=0"])

@@ -18,10 +18,10 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from multilayer.casefile import load_case
-from multilayer.measure import lumen_eta, read_series
-from multilayer.registry import Registry
-from multilayer.run import run_case
+from multilayer.case.casefile import load_case
+from multilayer.plugin.registry import Registry
+from multilayer.results.reading import lumen_eta, read_series
+from multilayer.run.loop import run_case
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "pulse-koiter-thick.toml"

@@ -13,9 +13,9 @@ import numpy as np
 import scipy.sparse as sp
 import skfem
 
-from multilayer.hookspecs import hookimpl
-from multilayer.interfaces import LayerMatrices, ThickLayer, ThinLayer
-from multilayer.records import LayerPlugin, Param
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import LayerPlugin, Param
+from multilayer.wall.layer import LayerMatrices, ThickLayer, ThinLayer
 
 
 @skfem.BilinearForm

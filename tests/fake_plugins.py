@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import attrs
 
-from multilayer.hookspecs import hookimpl
-from multilayer.records import CouplerPlugin, FluidPlugin, LayerPlugin, Param
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import CouplerPlugin, FluidPlugin, LayerPlugin, Param
 
 DENSITY = Param("density", "ρ", "g/cm³", gt=0.0, doc="density")
 THICKNESS = Param("thickness", "h", "cm", gt=0.0, doc="thickness")

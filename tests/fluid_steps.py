@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from multilayer.interfaces import Domain, Interface
-from multilayer.timescheme import SCHEMES
+from multilayer.fluid.contract import Domain, Interface
+from multilayer.numerics.timescheme import SCHEMES
 
 BE = SCHEMES["backward-euler"]
 

@@ -4,7 +4,7 @@ import csv
 import json
 from pathlib import Path
 
-from multilayer.cli import main
+from multilayer.commands.main import main
 
 CASES = Path(__file__).parents[1] / "cases"
 

@@ -7,11 +7,10 @@ style): each asserts a scalar the physics fixes.
 
 import numpy as np
 import pytest
-
-from multilayer.cli import main
-from multilayer.signals import backward_euler_eigenvalue, prony_roots
 from runs import CASES, run_cli
 
+from multilayer.commands.main import main
+from multilayer.numerics.signals import backward_euler_eigenvalue, prony_roots
 
 
 def run(case, tmp_path, *sets):

@@ -12,16 +12,15 @@ import fake_plugins
 import numpy as np
 import pytest
 
-from multilayer.casefile import (
+from multilayer.case.casefile import (
     CaseError,
-    apply_overrides,
     coupler_problems,
     load_case,
-    parse_value,
     validate_data,
 )
-from multilayer.cli import main
-from multilayer.registry import Registry
+from multilayer.case.keys import apply_overrides, parse_value
+from multilayer.commands.main import main
+from multilayer.plugin.registry import Registry
 
 # -- validation against stand-in plugins (independent of the real models) -------
 
@@ -390,7 +389,7 @@ def test_a_formula_finite_on_its_domain_is_valid(tmp_path, capsys):
 def test_power_towers_are_refused_at_once(tmp_path, expr):
     # as exact integers these never finish: the check runs in a process with a deadline
     path = write_case(tmp_path, None)
-    done = subprocess.run([sys.executable, "-m", "multilayer.cli", "validate", str(path),
+    done = subprocess.run([sys.executable, "-m", "multilayer.commands.main", "validate", str(path),
                            "--set", f'loads.interface="{expr}"'], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "an overflow" in done.stderr and "Traceback" not in done.stderr
 
@@ -415,16 +414,16 @@ def test_cli_refuses_sizes_that_cannot_run(tmp_path, capsys, sets, fragments):
 
 
 def test_the_memory_check_weighs_the_case_against_this_machine(tmp_path, capsys, monkeypatch):
-    import multilayer.resources
+    import multilayer.case.resources
 
     path = write_case(tmp_path, None)
-    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e9)
+    monkeypatch.setattr(multilayer.case.resources, "available_memory", lambda: 1e9)
     assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 2
     assert ("mesh.nz = 20000: the case needs about 4.6 GB of memory (4e+05 unknowns: wall 4e+05), "
             "this machine has 1 GB available") in capsys.readouterr().err
-    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: 1e12)
+    monkeypatch.setattr(multilayer.case.resources, "available_memory", lambda: 1e12)
     assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
-    monkeypatch.setattr(multilayer.resources, "available_memory", lambda: None)  # unknown: not refused
+    monkeypatch.setattr(multilayer.case.resources, "available_memory", lambda: None)  # unknown: not refused
     assert main(["validate", str(path), "--set", "mesh.nz=20000"]) == 0
 
 
@@ -495,7 +494,7 @@ def test_cli_cross_field_constraint_of_a_real_plugin(tmp_path, capsys):
 
 def test_console_entry_point_exits_2_without_traceback(tmp_path):
     path = write_case(tmp_path, ("poisson = 0.45", "poisson = 0.5"))
-    done = subprocess.run([sys.executable, "-m", "multilayer.cli", "validate", str(path)],
+    done = subprocess.run([sys.executable, "-m", "multilayer.commands.main", "validate", str(path)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert "layers[0].poisson = 0.5" in done.stderr and "Traceback" not in done.stderr + done.stdout

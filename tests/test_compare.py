@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer import measure, variants
-from multilayer.cli import main
-from multilayer.registry import Registry
-from multilayer.report import markdown
+from multilayer.campaign import measures
+from multilayer.results import reading
+from multilayer.campaign import variants
+from multilayer.campaign.report import markdown
+from multilayer.commands.main import main
+from multilayer.plugin.registry import Registry
 
 CASES = Path(__file__).parents[1] / "cases"
 MEMBRANE = CASES / "membrane-mode.toml"
@@ -114,7 +116,7 @@ def test_four_times_the_tension_doubles_the_measured_speed(tension):
 def test_spacetime_field_is_eta_on_the_lumen_line(tension):
     _, out, report = tension
     folder = out / report["variants"][1]["out"]
-    z, t, eta = measure.lumen_eta(folder, radius=0.5)
+    z, t, eta = reading.lumen_eta(folder, radius=0.5)
     assert np.all(np.diff(z) > 0) and z[0] == 0.0 and z[-1] == 6.0
     series = read_columns(folder / "series.csv")
     j = int(np.argmin(abs(z - 3.0)))
@@ -153,8 +155,8 @@ def test_synthetic_pulses_give_the_exact_speed(tmp_path):
         (folder / "summary.json").write_text(json.dumps(
             {"status": "ok", "case": case, "steps": len(t), "wall_time_s": 1.0, "dofs": {"wall": 7, "fluid": 5}}))
         folders.append((label, folder))
-    runs = [measure.read_run(label, folder) for label, folder in folders]
-    fine, coarse = measure.compare_runs(runs, Registry.load())
+    runs = [reading.read_run(label, folder) for label, folder in folders]
+    fine, coarse = measures.compare_runs(runs, Registry.load())
     for column in (fine, coarse):
         assert column["wave_speed_peak"] == pytest.approx(c, rel=1e-9)
         assert column["wave_speed_half_peak"] == pytest.approx(c, rel=1e-9)
@@ -183,13 +185,13 @@ def test_synthetic_pulses_give_the_exact_speed(tmp_path):
 
 def test_differences_interpolate_in_time():
     t_fine, t_coarse = np.linspace(0.1, 1.0, 10), np.linspace(0.2, 1.0, 5)
-    assert measure.max_abs_difference(t_fine, 3 * t_fine, t_coarse, 3 * t_coarse) == pytest.approx(0.0, abs=1e-15)
-    assert measure.max_abs_difference(t_fine, t_fine + 0.25, t_coarse, t_coarse) == pytest.approx(0.25)
+    assert measures.max_abs_difference(t_fine, 3 * t_fine, t_coarse, 3 * t_coarse) == pytest.approx(0.0, abs=1e-15)
+    assert measures.max_abs_difference(t_fine, t_fine + 0.25, t_coarse, t_coarse) == pytest.approx(0.25)
     # the largest difference sits at a kink of one series only: both grids are needed
     t, flat = np.array([0.0, 2.0]), np.zeros(2)
-    assert measure.max_abs_difference(t, flat, np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0])) == 1.0
-    assert measure.max_abs_difference(np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0]), t, flat) == 1.0
-    assert measure.max_abs_difference(t, flat, t + 3.0, flat) is None  # no common time
+    assert measures.max_abs_difference(t, flat, np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0])) == 1.0
+    assert measures.max_abs_difference(np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 0.0]), t, flat) == 1.0
+    assert measures.max_abs_difference(t, flat, t + 3.0, flat) is None  # no common time
 
 
 PULSE = CASES / "pulse-koiter-thick.toml"  # fluid | Koiter shell | thick band, inlet cosine pulse

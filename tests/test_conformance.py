@@ -6,10 +6,17 @@ import broken_layers
 import numpy as np
 import pytest
 
-from multilayer.cli import import_plugin, main
-from multilayer.records import LayerPlugin, Param
-from multilayer.testing import CHECKS, LayerConformance, assert_layer_conforms, check_layer, example_params
-from multilayer.wall import WallSpace
+from multilayer.commands.main import main
+from multilayer.plugin.loading import import_plugin
+from multilayer.plugin.records import LayerPlugin, Param
+from multilayer.testing import (
+    CHECKS,
+    LayerConformance,
+    assert_layer_conforms,
+    check_layer,
+    example_params,
+)
+from multilayer.wall.stack import WallSpace
 
 
 class TestWaveMembrane(LayerConformance):

@@ -7,11 +7,11 @@ Measured numbers quoted in the comments come from these tests
 
 import numpy as np
 import pytest
+from runs import CASES, run_cli
 
 import multilayer_plugins.kinematic_splitting as ks
-from multilayer.cli import main
-from multilayer.structure import StructureStep
-from runs import CASES, run_cli
+from multilayer.commands.main import main
+from multilayer.coupling.structure import StructureStep
 
 COUPLED = sorted(p.stem for p in CASES.glob("*.toml")
                  if "kinematic-splitting" in p.read_text() and "[fluid]" in p.read_text())

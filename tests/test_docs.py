@@ -7,8 +7,8 @@ import pkgutil
 import pytest
 
 import multilayer_plugins
-from multilayer import hookspecs
-from multilayer.registry import Registry
+from multilayer.plugin import hookspecs
+from multilayer.plugin.registry import Registry
 
 PLUGIN_MODULES = sorted(m.name for m in pkgutil.walk_packages(multilayer_plugins.__path__, prefix="multilayer_plugins."))
 

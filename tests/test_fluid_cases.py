@@ -9,9 +9,9 @@ user of the results folder would.
 import meshio
 import numpy as np
 import pytest
-
-from multilayer.linsolve import BACKENDS
 from runs import run_cli
+
+from multilayer.numerics.linsolve import BACKENDS
 
 MU, RHO = 0.035, 1.0
 
@@ -140,8 +140,9 @@ def test_pardiso_gives_the_superlu_solution(tmp_path):
 
 @pytest.mark.skipif("pardiso" not in BACKENDS, reason="optional extra 'fast' (pypardiso) not installed")
 def test_pardiso_has_no_single_precision_factors(tmp_path, capsys):
-    from multilayer.cli import main
     from runs import CASES
+
+    from multilayer.commands.main import main
 
     code = main(["run", str(CASES / "prescribed-wall.toml"), "--out", str(tmp_path), "--quiet",
                  "--set", "solver.linear=pardiso", "--set", "solver.factors=single"])

@@ -3,19 +3,19 @@
 import doctest
 
 import numpy as np
-import skfem
 import pytest
 import scipy.sparse as sp
+import skfem
 from skfem import asm
 
+import multilayer.numerics.assembly.batched
+import multilayer.numerics.assembly.pattern
 import multilayer_plugins.channel.ale
-import multilayer.assembly.batched
 import multilayer_plugins.channel.channel
 import multilayer_plugins.channel.model
-import multilayer.assembly.pattern
+from multilayer.numerics.assembly.batched import BatchedForm, SkewPart
 from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.ale import ALEFields
-from multilayer.assembly.batched import BatchedForm, SkewPart
 from multilayer_plugins.channel.channel import Channel
 
 
@@ -23,10 +23,10 @@ from multilayer_plugins.channel.channel import Channel
     "module",
     [
         multilayer_plugins.channel.ale,
-        multilayer.assembly.batched,
+        multilayer.numerics.assembly.batched,
         multilayer_plugins.channel.channel,
         multilayer_plugins.channel.model,
-        multilayer.assembly.pattern,
+        multilayer.numerics.assembly.pattern,
     ],
 )
 def test_doctests(module):

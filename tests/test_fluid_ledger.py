@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
-
 from fluid_steps import BE
-from multilayer.interfaces import Domain, Interface
-from multilayer_plugins.channel import NavierStokes
+
+from multilayer.fluid.contract import Domain, Interface
+from multilayer_plugins.channel import NavierStokes, forms
 from multilayer_plugins.channel.ledger import end_fluxes, fluid_kinetic
-from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.step import Solution
 
 

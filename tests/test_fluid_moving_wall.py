@@ -15,14 +15,14 @@ default Krylov reuse both hold to what the solver tolerance 1e-12 allows
 
 import numpy as np
 import pytest
+from fluid_steps import fluid_step
 from skfem import BilinearForm, asm
 
-from multilayer.linsolve import Reuse
+from multilayer.numerics.linsolve import Reuse
 from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.ledger import end_fluxes
 from multilayer_plugins.channel.probes import wall_displacement
-from fluid_steps import fluid_step
 
 L, R, MU, RHO = 2.0, 0.5, 0.035, 1.0
 A, T0 = 0.05, 0.1

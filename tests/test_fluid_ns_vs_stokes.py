@@ -8,10 +8,10 @@ Re 0.057, 8.97e-5 at Re 0.57) and measurable at Re 286 (4.03e-2).
 
 import numpy as np
 import pytest
+from fluid_steps import fluid_step
 
 from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
 from multilayer_plugins.channel.probes import l2_error
-from fluid_steps import fluid_step
 
 L, R, MU, RHO, T0 = 2.0, 0.5, 0.035, 1.0, 0.02
 

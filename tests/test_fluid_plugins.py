@@ -2,13 +2,12 @@
 
 import numpy as np
 import pytest
+from fluid_steps import BE, fluid_step
 from skfem import BilinearForm, asm
 
+from multilayer.fluid.contract import Domain, Fluid, Interface
+from multilayer.plugin.registry import Registry
 from multilayer_plugins.channel import ChannelFluid, NavierStokes, Stokes
-from multilayer.interfaces import Fluid
-from multilayer.registry import Registry
-from fluid_steps import BE, fluid_step
-from multilayer.interfaces import Domain, Interface
 
 
 @pytest.mark.parametrize("name, cls", [("navier-stokes", NavierStokes), ("stokes", Stokes)])

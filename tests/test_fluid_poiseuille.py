@@ -14,10 +14,10 @@ Re 0.85, 4.41e-5 at Re 0.0085).
 
 import numpy as np
 import pytest
+from fluid_steps import fluid_step
 
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
-from fluid_steps import fluid_step
 
 L, R, MU, RHO = 6.0, 0.5, 0.035, 1.0
 

@@ -18,7 +18,7 @@ relative to G/(ωρ) √(LR).  Measured (ω = 2π s⁻¹, Womersley number 6.7):
     time, P2 nz = 4, nr = 16, to t = T/2, Δt = T/10 … T/160
               4.37e-2  2.22e-2  1.12e-2  5.65e-3  2.83e-3   orders 0.97 0.98 0.99 1.00
 
-Crank–Nicolson and BDF2 (:mod:`multilayer.timescheme`) are checked the same
+Crank–Nicolson and BDF2 (:mod:`multilayer.numerics.timescheme`) are checked the same
 way for order 2; a two-step scheme starts from the exact solution at t = 0
 and t = −Δt.
 """
@@ -26,8 +26,8 @@ and t = −Δt.
 import numpy as np
 import pytest
 
-from multilayer.interfaces import Domain
-from multilayer.timescheme import SCHEMES
+from multilayer.fluid.contract import Domain
+from multilayer.numerics.timescheme import SCHEMES
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
 

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from multilayer.formula import Formula, FormulaError
+from multilayer.functions.formula import Formula, FormulaError
 
 
 @pytest.mark.parametrize(

@@ -7,14 +7,14 @@ import attrs
 import broken_layers
 import pytest
 
-from multilayer.case import LayerSpec
-from multilayer.casefile import load_case
-from multilayer.cli import main
-from multilayer.layer_checks import LayerError
-from multilayer.registry import Registry
-from multilayer.run import run_case
-from multilayer.setup import build_layer
-from multilayer.wall import Stack, WallSpace
+from multilayer.case.casefile import load_case
+from multilayer.case.model import LayerSpec
+from multilayer.commands.main import main
+from multilayer.plugin.registry import Registry
+from multilayer.run.loop import run_case
+from multilayer.scene.setup import build_layer
+from multilayer.wall.checks import LayerError
+from multilayer.wall.stack import Stack, WallSpace
 
 REGISTRY = Registry.load(extra=[broken_layers])
 

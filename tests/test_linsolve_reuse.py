@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-
-import multilayer.krylov
-import multilayer.linsolve
-from multilayer.krylov import SolutionSpan, preconditioned_gmres
-from multilayer.linsolve import Reuse, ReusingSolver, SolverStats
 from runs import run_cli
 
+import multilayer.numerics.krylov
+import multilayer.numerics.linsolve
+from multilayer.numerics.krylov import SolutionSpan, preconditioned_gmres
+from multilayer.numerics.linsolve import Reuse, ReusingSolver, SolverStats
 
-@pytest.mark.parametrize("module", [multilayer.krylov, multilayer.linsolve])
+
+@pytest.mark.parametrize("module", [multilayer.numerics.krylov, multilayer.numerics.linsolve])
 def test_doctests(module):
     assert doctest.testmod(module).failed == 0
 
@@ -103,7 +103,7 @@ def test_factors_that_cost_iterations_are_replaced_at_the_break_even(monkeypatch
         runs[cost] = (stats.factorizations, iterations)
     factorizations, iterations = runs[4.0]
     assert factorizations == 5 and iterations == [-1, 4, 5, 5, 5, 5] * 5, iterations
-    assert multilayer.linsolve.factorization_cost(400) == 14.0
+    assert multilayer.numerics.linsolve.factorization_cost(400) == 14.0
     factorizations, iterations = runs[None]
     assert factorizations == 3 and iterations[:22] == [-1, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6] * 2, iterations
     factorizations, iterations = runs[1e9]
@@ -289,8 +289,8 @@ def test_single_precision_factors_that_do_not_serve_fall_back_to_double():
 
 
 def test_single_precision_factors_need_a_superlu_backend(monkeypatch):
-    monkeypatch.setitem(multilayer.linsolve.BACKENDS, "other", lambda: (lambda A: None))
+    monkeypatch.setitem(multilayer.numerics.linsolve.BACKENDS, "other", lambda: (lambda A: None))
     with pytest.raises(ValueError, match="single-precision factors need one of the linear solvers"):
-        multilayer.linsolve.factorize(sp.eye(3).tocsc(), SolverStats(), "other", single=True)
+        multilayer.numerics.linsolve.factorize(sp.eye(3).tocsc(), SolverStats(), "other", single=True)
     with pytest.raises(ValueError, match="factors 'half'"):
         Reuse(factors="half")

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from multilayer.formula import Formula
-from multilayer.loads import (
+from multilayer.functions.formula import Formula
+from multilayer.functions.loads import (
     ConstantPressure,
     CosinePulse,
     FormulaPressure,
@@ -14,7 +14,7 @@ from multilayer.loads import (
     load_from_spec,
     read_table,
 )
-from multilayer.problems import CaseError
+from multilayer.plugin.problems import CaseError
 
 
 def quad_average(load, t0, t1, breaks=()):

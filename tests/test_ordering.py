@@ -1,20 +1,20 @@
-"""The fill-reducing ordering kept per sparsity pattern (multilayer.ordering) and the SuperLU backend on it."""
+"""The fill-reducing ordering kept per sparsity pattern (multilayer.numerics.ordering) and the SuperLU backend on it."""
 
 import doctest
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-
-import multilayer.linsolve
-import multilayer.ordering
-from multilayer.linsolve import Reuse, ReusingSolver, SolverStats, factorize
-from multilayer.ordering import nested_dissection, pattern_key
 from runs import run_cli
+
+import multilayer.numerics.linsolve
+import multilayer.numerics.ordering
+from multilayer.numerics.linsolve import Reuse, ReusingSolver, SolverStats, factorize
+from multilayer.numerics.ordering import nested_dissection, pattern_key
 
 
 def test_doctests():
-    assert doctest.testmod(multilayer.ordering).failed == 0
+    assert doctest.testmod(multilayer.numerics.ordering).failed == 0
 
 
 def laplacian(n: int) -> sp.csc_matrix:
@@ -61,7 +61,7 @@ def test_superlu_orders_each_pattern_once(monkeypatch):
         calls.append(A.shape)
         return nested_dissection(A)
 
-    monkeypatch.setattr(multilayer.linsolve, "nested_dissection", counting)
+    monkeypatch.setattr(multilayer.numerics.linsolve, "nested_dissection", counting)
     stats = SolverStats()
     A = laplacian(10)
     b = np.arange(100.0)

@@ -6,14 +6,14 @@ the sub-iteration tolerance; explicit Dirichlet–Neumann is unstable when
 the wall is light (Causin, Gerbeau & Nobile 2005) and must stop cleanly.
 """
 
-import numpy as np
-import pytest
-
 import json
 
-from multilayer.cli import main
-from multilayer.run import EnergyBound, RunFailed
+import numpy as np
+import pytest
 from runs import CASES, run_cli
+
+from multilayer.commands.main import main
+from multilayer.run.loop import EnergyBound, RunFailed
 
 TINY = ("geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
         'output.probes=[{ name = "eta_z1", quantity = "eta", z = 1.0 }]')

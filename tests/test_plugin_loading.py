@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-import multilayer.registry
-from multilayer.cli import main
-from multilayer.registry import Registry
+import multilayer.plugin.registry
+from multilayer.commands.main import main
+from multilayer.plugin.registry import Registry
 
 CASES = Path(__file__).parents[1] / "cases"
 
@@ -29,9 +29,9 @@ def site(tmp_path, monkeypatch):
     (info / "entry_points.txt").write_text(ENTRY_POINTS)
     (tmp_path / "broken_thing_raises.py").write_text('raise RuntimeError("needs a licence key")\n')
     (tmp_path / "broken_thing_hooks.py").write_text(
-        "from multilayer.hookspecs import hookimpl\n\n@hookimpl\ndef multilayer_layer():\n    return []\n")
+        "from multilayer.plugin.hookspecs import hookimpl\n\n@hookimpl\ndef multilayer_layer():\n    return []\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(multilayer.registry, "_REPORTED", set())
+    monkeypatch.setattr(multilayer.plugin.registry, "_REPORTED", set())
     return tmp_path
 
 
@@ -71,7 +71,7 @@ def test_the_console_script_warns_once_and_runs(site):
     import os
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
-    done = subprocess.run([sys.executable, "-m", "multilayer.cli", "plugins", "koiter-shell"], env=env,
+    done = subprocess.run([sys.executable, "-m", "multilayer.commands.main", "plugins", "koiter-shell"], env=env,
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and "young" in done.stdout
     assert done.stderr.count("warning: plugin entry point") == 3 and "Traceback" not in done.stderr
@@ -79,7 +79,7 @@ def test_the_console_script_warns_once_and_runs(site):
 
 def test_a_plugin_given_with_the_plugin_option_must_load(tmp_path, capsys):
     path = tmp_path / "typo_hooks.py"
-    path.write_text("from multilayer.hookspecs import hookimpl\n\n@hookimpl\ndef multilayer_layer():\n    return []\n")
+    path.write_text("from multilayer.plugin.hookspecs import hookimpl\n\n@hookimpl\ndef multilayer_layer():\n    return []\n")
     assert main(["plugins", "--plugin", str(path)]) == 2
     err = capsys.readouterr().err
     assert "typo_hooks" in err and "multilayer_layer" in err and "Traceback" not in err

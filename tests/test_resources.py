@@ -2,9 +2,9 @@
 
 import pytest
 
-from multilayer import resources
-from multilayer.resources import available_memory, fluid_dofs, need, wall_dofs
-from multilayer.wall import WallSpace
+from multilayer.case import resources
+from multilayer.case.resources import available_memory, fluid_dofs, need, wall_dofs
+from multilayer.wall.stack import WallSpace
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.linear_elastic import LinearElasticBand
 from multilayer_plugins.thin_shell import KoiterFamilyLayer

@@ -10,13 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import multilayer.results
-from multilayer.casefile import load_case
-from multilayer.cli import INTERRUPTED, main
-from multilayer.results import ResultsFolder, _append_to_collection, _pvd
-from multilayer.run import run_case
 from runs import CASES, run_cli
+
+import multilayer.results.folder
+from multilayer.case.casefile import load_case
+from multilayer.commands.main import INTERRUPTED, main
+from multilayer.results.folder import ResultsFolder, _append_to_collection, _pvd
+from multilayer.run.loop import run_case
 
 #: with solver.reuse = "krylov" (the default) every checkpoint makes the next solve factorize afresh, as a
 #: resumed run's first solve must: a checkpointed run and its resume are bit-identical
@@ -90,14 +90,14 @@ def test_sigint_stops_cleanly_with_a_checkpoint_and_resume_finishes_the_run(tmp_
 
 
 def test_sigterm_from_the_cli_says_where_the_results_are(tmp_path, monkeypatch, capsys):
-    import multilayer.progress
+    import multilayer.run.progress
 
-    class Killer(multilayer.progress.ProgressBar):
+    class Killer(multilayer.run.progress.ProgressBar):
         def __call__(self, tally, row):
             if tally.steps == 3:
                 os.kill(os.getpid(), signal.SIGTERM)
 
-    monkeypatch.setattr(multilayer.progress, "ProgressBar", Killer)
+    monkeypatch.setattr(multilayer.run.progress, "ProgressBar", Killer)
     out = tmp_path / "term"
     a = argv(out, "time.end=0.001")
     a.remove("--quiet")
@@ -149,14 +149,14 @@ def test_an_unusable_folder_is_refused_before_any_work(tmp_path, capsys):
 
 
 def test_summary_is_written_when_the_disk_is_full(tmp_path, monkeypatch):
-    real = multilayer.results._write_atomically
+    real = multilayer.results.folder._write_atomically
 
     def full_disk(path, text):
         if path.name == "summary.json":
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(path, text)
 
-    monkeypatch.setattr(multilayer.results, "_write_atomically", full_disk)
+    monkeypatch.setattr(multilayer.results.folder, "_write_atomically", full_disk)
     out = tmp_path / "full"
     assert main(argv(out, "time.end=0.001")) == 0
     summary = json.loads((out / "summary.json").read_text())

@@ -6,7 +6,7 @@ import meshio
 import numpy as np
 import pytest
 
-from multilayer.results import ResultsFolder
+from multilayer.results.folder import ResultsFolder
 
 
 def read_rows(path):
@@ -82,8 +82,9 @@ def test_summary_converts_numpy(tmp_path):
 
 
 def test_snapshots_of_every_wall_have_the_same_fields_and_the_fluid_is_not_moved_twice(tmp_path):
-    from multilayer.cli import main
     from runs import CASES
+
+    from multilayer.commands.main import main
 
     fields = {}
     for case in ("pulse-koiter", "pulse-koiter-thick"):

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from multilayer.casefile import load_case
-from multilayer.cli import main
-from multilayer.formula import Formula
-from multilayer.hookspecs import hookimpl
-from multilayer.interfaces import LayerMatrices, ThinLayer
-from multilayer.loads import FormulaPressure
-from multilayer.records import LayerPlugin, Param
-from multilayer.run import run_case
+from multilayer.case.casefile import load_case
+from multilayer.commands.main import main
+from multilayer.functions.formula import Formula
+from multilayer.functions.loads import FormulaPressure
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import LayerPlugin, Param
+from multilayer.run.loop import run_case
+from multilayer.wall.layer import LayerMatrices, ThinLayer
 
 CASES = Path(__file__).parents[1] / "cases"
 

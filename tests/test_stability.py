@@ -7,14 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer import ledger, stability
-from multilayer.casefile import load_case
-from multilayer.cli import main
-from multilayer.measure import read_run, read_series
-from multilayer.registry import Registry
-from multilayer.run import run_case
-from multilayer.setup import Setup
-from multilayer.study import Planned, Variant
+from multilayer.campaign import stability
+from multilayer.campaign.study import Planned, Variant
+from multilayer.case.casefile import load_case
+from multilayer.commands.main import main
+from multilayer.coupling.build import prepare
+from multilayer.plugin.registry import Registry
+from multilayer.results.reading import read_run, read_series
+from multilayer.run import ledger
+from multilayer.run.loop import run_case
 
 CASES = Path(__file__).parents[1] / "cases"
 PULSE = CASES / "pulse-koiter.toml"
@@ -27,7 +28,7 @@ TINY = ["geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
 
 
 def ledger_series(e0, stored, work, dissipation, residual=None):
-    """series.csv columns of a run whose ledger the runner closed step by step (multilayer.ledger.close)."""
+    """series.csv columns of a run whose ledger the runner closed step by step (multilayer.run.ledger.close)."""
     rows, previous = [], e0
     for n, (e, w, d) in enumerate(zip(stored, work, dissipation)):
         row = ledger.close({"kinetic.fluid": e}, previous, {"work.inlet": w[0], "work.outlet": w[1]},
@@ -97,8 +98,8 @@ def test_initial_energy_is_the_couplers_own_on_a_run_from_a_displaced_wall(tmp_p
     registry = Registry.load()
     case = load_case(PULSE, [*TINY, "time.end=5e-4", "loads.inlet=0.0",
                              'initial.displacement={r="0.01*sin(pi*z/2)", z="0"}'], registry)
-    setup = Setup.build(case, registry)
-    e0 = sum(setup.coupler.energy(setup, setup.coupler.initial_state(setup)).values())
+    setup, coupler = prepare(case, registry)
+    e0 = sum(coupler.energy(setup, coupler.initial_state(setup)).values())
     assert e0 > 1.0
     assert run_case(case, tmp_path, registry).status == "ok"
     series = read_series(tmp_path / "series.csv")

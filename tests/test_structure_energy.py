@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from multilayer import ledger
-from multilayer.linsolve import SolverStats
-from multilayer.state import State, WallState
-from multilayer.structure import StructureStep, zero_fixed
-from multilayer.timescheme import SCHEMES
-from multilayer.wall import Stack, WallSpace
+from multilayer.coupling.structure import StructureStep
+from multilayer.numerics.linsolve import SolverStats
+from multilayer.numerics.timescheme import SCHEMES
+from multilayer.run import ledger
+from multilayer.scene.state import State, WallState
+from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.koiter_shell import koiter_shell
 from multilayer_plugins.linear_elastic import LinearElasticBand
 from multilayer_plugins.wave_membrane import wave_membrane
@@ -53,7 +53,7 @@ def test_wall_energy_identity_closes_every_step(order, fluid_updates_v, scheme):
     S = SCHEMES[scheme]
     d0 = space.interpolate(lambda z, r, t: 0.0 * z,
                            lambda z, r, t: 0.01 * np.sin(np.pi * z / L) * np.exp(-(r - R) / 0.1))
-    state = State(0, 0.0, WallState(zero_fixed(stack, d0), np.zeros(space.ndofs)),
+    state = State(0, 0.0, WallState(stack.zero_fixed(d0), np.zeros(space.ndofs)),
                   v=np.zeros(space.lines[0].ndofs) if fluid_updates_v else None)
     step = StructureStep(stack, S, dt, SolverStats(), fluid_line=0 if fluid_updates_v else None)
     outer, lumen = space.line_load(space.outer_line), space.line_load(0)
@@ -88,7 +88,7 @@ def test_identity_detects_a_wrong_term():
     # the ledger is not vacuous: dropping the numerical dissipation breaks it
     space, stack = four_layer_stack(1, nz=8)
     d0 = space.interpolate(lambda z, r, t: 0.0 * z, lambda z, r, t: 0.01 * np.sin(np.pi * z / L))
-    state = State(0, 0.0, WallState(zero_fixed(stack, d0), np.zeros(space.ndofs)))
+    state = State(0, 0.0, WallState(stack.zero_fixed(d0), np.zeros(space.ndofs)))
     step = StructureStep(stack, SCHEMES["backward-euler"], 1e-4, SolverStats())
     previous = sum(step.energy(state).values())
     out = step.step(state, {})

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer import study
-from multilayer.cli import main
-from multilayer.measure import read_run
+from multilayer.campaign import study
+from multilayer.commands.main import main
+from multilayer.results.reading import read_run
 
 CASES = Path(__file__).parents[1] / "cases"
 PULSE = CASES / "pulse-koiter.toml"
@@ -222,7 +222,7 @@ def test_bad_input_exits_2_naming_the_key_and_the_value(tmp_path, capsys, extra,
 
 
 def test_a_coupler_name_and_a_coupler_table_are_the_same_override():
-    from multilayer.casefile import load_case
+    from multilayer.case.casefile import load_case
 
     plain = load_case(PULSE)
     for item in study.parse_couplers('kinematic-splitting,{model="kinematic-splitting"}', ["kinematic-splitting"]):

@@ -12,10 +12,12 @@ from pathlib import Path
 import pytest
 import scipy.sparse as sp
 
-from multilayer import executor, grid, linsolve, sweep
-from multilayer.casefile import load_case
-from multilayer.cli import main
-from multilayer.registry import Registry
+from multilayer.campaign import executor, sweep
+from multilayer.case import grid
+from multilayer.case.casefile import load_case
+from multilayer.commands.main import main
+from multilayer.numerics import linsolve
+from multilayer.plugin.registry import Registry
 
 CASES = Path(__file__).parents[1] / "cases"
 PULSE = CASES / "pulse-koiter.toml"
@@ -76,7 +78,7 @@ def test_validate_says_it_is_a_sweep_and_run_ignores_the_table(tmp_path, capsys)
 
 
 def test_toml_text_reads_back_to_the_same_value():
-    from multilayer.casefile import parse_value
+    from multilayer.case.keys import parse_value
 
     for value in (5e-5, 1e6, 3, -2.5, "koiter-shell", 'a "b"', True, [1, 2.5],
                   {"model": "wave-membrane", "tension": 2e4, "x y": [1, {"a": 1}]}):
@@ -243,7 +245,7 @@ def test_a_sweep_on_two_local_dask_workers_survives_a_worker_killed_mid_run(tmp_
     case = with_sweep(tmp_path, GRID)
     out = tmp_path / "out"
     argv = ["sweep", str(case), "--out", str(out), "--jobs", "2", *sets(*SMALL)]
-    process = subprocess.Popen([sys.executable, "-m", "multilayer.cli", *argv], stdout=subprocess.PIPE,
+    process = subprocess.Popen([sys.executable, "-m", "multilayer.commands.main", *argv], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
         folder, pid = _kill_a_run_in_flight(out, time.monotonic() + 60)

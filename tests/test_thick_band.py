@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from multilayer.linsolve import SolverStats
-from multilayer.signals import backward_euler_eigenvalue, prony_roots
-from multilayer.state import State, WallState
-from multilayer.structure import StructureStep, zero_fixed
-from multilayer.timescheme import SCHEMES
-from multilayer.wall import Stack, WallSpace
+from multilayer.coupling.structure import StructureStep
+from multilayer.numerics.linsolve import SolverStats
+from multilayer.numerics.signals import backward_euler_eigenvalue, prony_roots
+from multilayer.numerics.timescheme import SCHEMES
+from multilayer.scene.state import State, WallState
+from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.linear_elastic import LinearElasticBand
 
 L, R, H = 2.0, 0.5, 0.5
@@ -31,7 +31,7 @@ def measured_eigenvalue(kind, m, n, nz, nr, order, dt, steps=60):
     fz, fr, omega = mode(kind, m, n)
     space = WallSpace.build([BAND], L, R, nz, order, [nr])
     stack = Stack.assemble(space)
-    d0 = zero_fixed(stack, space.interpolate(lambda z, r, t: fz(z, r), lambda z, r, t: fr(z, r)))
+    d0 = stack.zero_fixed(space.interpolate(lambda z, r, t: fz(z, r), lambda z, r, t: fr(z, r)))
     state = State(0, 0.0, WallState(d0, np.zeros_like(d0)))
     stats = SolverStats()
     step = StructureStep(stack, SCHEMES["backward-euler"], dt, stats)

@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from multilayer.interfaces import LayerMatrices
-from multilayer.linsolve import SolverStats
-from multilayer.registry import Registry
-from multilayer.spaces import make_line_space
-from multilayer.state import State, WallState
-from multilayer.structure import StructureStep
-from multilayer.timescheme import SCHEMES
-from multilayer.wall import Stack, WallSpace
+from multilayer.coupling.structure import StructureStep
+from multilayer.geometry.spaces import make_line_space
+from multilayer.numerics.linsolve import SolverStats
+from multilayer.numerics.timescheme import SCHEMES
+from multilayer.plugin.registry import Registry
+from multilayer.scene.state import State, WallState
+from multilayer.wall.layer import LayerMatrices
+from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.koiter_shell import KoiterShell, koiter_shell
 from multilayer_plugins.thin_shell import KoiterFamilyLayer
 from multilayer_plugins.wave_membrane import wave_membrane

@@ -1,7 +1,7 @@
 """A layer model written outside the package is found and used: no core edit needed.
 
 The Winkler foundation ρ η_tt + k η = f is registered from this test module
-(not from ``plugins/``); its run must ring at ω = √(k/ρ) for any mode.
+(not from ``multilayer_plugins/``); its run must ring at ω = √(k/ρ) for any mode.
 """
 
 import csv
@@ -10,14 +10,14 @@ import sys
 import numpy as np
 import skfem
 
-from multilayer.casefile import validate_data
-from multilayer.hookspecs import hookimpl
-from multilayer.interfaces import LayerMatrices, ThinLayer
-from multilayer.records import LayerPlugin, Param
-from multilayer.registry import Registry
-from multilayer.run import run_case
-from multilayer.signals import backward_euler_eigenvalue, prony_roots
+from multilayer.case.casefile import validate_data
+from multilayer.numerics.signals import backward_euler_eigenvalue, prony_roots
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import LayerPlugin, Param
+from multilayer.plugin.registry import Registry
+from multilayer.run.loop import run_case
 from multilayer.testing import LayerConformance
+from multilayer.wall.layer import LayerMatrices, ThinLayer
 
 
 @skfem.BilinearForm

@@ -1,0 +1,104 @@
+"""``multilayer compare``: variants of one scene, run side by side and measured alike.
+
+Variants come from :mod:`multilayer.campaign.variants`, measurements from
+:mod:`multilayer.campaign.measures`, plots and tables from :mod:`multilayer.campaign.report`.
+Every variant runs into ``OUT/<label>/``, an ordinary results folder (see
+:mod:`multilayer.run.loop`), and the comparison is then made from those folders
+alone — ``summary.json``, ``series.csv`` and the wall snapshots — so every
+number of ``report.md`` / ``report.json`` can be recomputed from the runs'
+own files.  See ``docs/compare.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from multilayer.campaign import report
+from multilayer.campaign.executor import ExecutorError, Job, execute
+from multilayer.campaign.measures import compare_runs
+from multilayer.campaign.variants import (
+    Variant,
+    invalid_message,
+    load_variants,
+    make_variants,
+)
+from multilayer.commands.main import FAILED, INVALID, OK
+from multilayer.plugin.problems import CaseError
+from multilayer.plugin.registry import Registry
+from multilayer.results.figures import plot_spacetime
+from multilayer.results.reading import RunData, lumen_eta, read_run, without_nan
+
+
+def run_variants(variants: Sequence[Variant], out: Path, registry: Registry, jobs: int = 1,
+                 plugins: Sequence[str] = (), scheduler: str | None = None,
+                 log: Callable[[str], None] = print) -> list[RunData]:
+    """Run every variant into ``out/<label>/`` with :func:`multilayer.campaign.executor.execute` and read the folders back.
+
+    A run that raises (a bug, not a failed run) is logged with its traceback
+    and kept as a failed variant.  ``jobs`` 1 runs them here, one after the
+    other; more (or a ``scheduler``) on Dask.
+    """
+    work = [Job(v.label, v.case_file, v.overrides, out / v.label) for v in variants]
+    status = execute(work, jobs, registry, plugins, log=log, scheduler=scheduler)
+    return [read_run(v.label, out / v.label, *status[v.label]) for v in variants]
+
+
+def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData], registry: Registry,
+                 vary: str | None = None) -> dict[str, Any]:
+    """``report.json``, ``report.md``, ``probes.png`` and ``eta_spacetime.png`` in ``out``."""
+    columns = compare_runs(runs, registry)
+    for column, variant in zip(columns, variants):
+        column["case_file"] = str(variant.case_file)
+        column["overrides"] = list(variant.overrides)
+    first = runs[0].case
+    data = {
+        "title": first.get("title", ""),
+        "vary": vary,
+        "reference": runs[0].label,
+        "variants": columns,
+    }
+    (out / "report.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
+    report.plot_probes(runs, out / "probes.png")
+    radius = (first.get("geometry") or {}).get("radius")
+    fields = {run.label: lumen_eta(run.folder, radius) for run in runs} if radius else {}
+    plot_spacetime(fields, out / "eta_spacetime.png")
+    (out / "report.md").write_text(report.markdown(data))
+    return data
+
+
+def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Sequence[str],
+         registry: Registry, jobs: int = 1, plugins: Sequence[str] = (), scheduler: str | None = None) -> int:
+    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary, --jobs) is invalid."""
+    if jobs < 1:
+        print(f"compare: invalid command line\n--jobs = {jobs}: expected an integer >= 1 (runs at once)",
+              file=sys.stderr)
+        return INVALID
+    try:
+        variants = make_variants(case_files, vary, overrides)
+    except CaseError as exc:
+        print("compare: invalid command line", file=sys.stderr)
+        print(str(exc), file=sys.stderr)
+        return INVALID
+    loaded, invalid = load_variants(variants, registry)
+    if invalid:
+        print(invalid_message("compare", variants, invalid), file=sys.stderr)
+        return INVALID
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    variants = [v for v, _ in loaded]  # with the snapshot cadence they ran with
+    try:
+        runs = run_variants(variants, out, registry, jobs, plugins, scheduler)
+    except ExecutorError as exc:
+        print(f"compare: {exc}", file=sys.stderr)
+        return INVALID
+    data = write_report(out, variants, runs, registry, vary)
+    failed = [c["label"] for c in data["variants"] if c["status"] != "ok"]
+    print(f"report: {out / 'report.md'}")
+    if failed:
+        print(f"compare: {len(failed)} variant(s) failed: {', '.join(failed)}", file=sys.stderr)
+        return FAILED
+    return OK

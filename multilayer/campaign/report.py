@@ -1,0 +1,128 @@
+"""The comparison report as people read it: a Markdown table and figures."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from matplotlib.figure import Figure
+
+from multilayer.results.figures import save_figure
+
+NONE = "—"
+
+
+def cell(value: Any) -> str:
+    """A table cell: numbers to 6 significant digits, None as a dash.
+
+    >>> cell(1234.56789), cell(None), cell(3), cell("ok")
+    ('1234.57', '—', '3', 'ok')
+    """
+    if value is None:
+        return NONE
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value)
+
+
+def _probe_names(columns: Sequence[Mapping[str, Any]], quantity: str) -> list[tuple[str, Mapping[str, Any]]]:
+    """(name, probe entry) of every probe of ``quantity`` in any column, in order of first appearance."""
+    seen: dict[str, Mapping[str, Any]] = {}
+    for column in columns:
+        for name, entry in column["probes"].items():
+            if entry["quantity"] == quantity and name not in seen:
+                seen[name] = entry
+    return list(seen.items())
+
+
+def _where(entry: Mapping[str, Any]) -> str:
+    return f"z = {entry['z']:g}" + (f", line {entry['line']}" if entry.get("line") else "")
+
+
+def rows(data: Mapping[str, Any]) -> list[tuple[str, list[str]]]:
+    """(row title, one cell per variant) of the report table, in order."""
+    columns = data["variants"]
+
+    def row(title: str, get) -> tuple[str, list[str]]:
+        return title, [cell(get(c)) for c in columns]
+
+    def probe(name: str, key: str):
+        return lambda c: c["probes"].get(name, {}).get(key)
+
+    out = [
+        row("status", lambda c: c["status"]),
+        row("DOFs", lambda c: c["dofs_total"]),
+        row("steps", lambda c: c["steps"]),
+        row("wall time (s)", lambda c: c["wall_time_s"]),
+    ]
+    etas = _probe_names(columns, "eta")
+    for name, entry in etas:
+        title, cells = row(f"max \\|Δη\\| vs `{data['reference']}` at `{name}` ({_where(entry)}) (cm)",
+                           probe(name, "max_abs_diff"))
+        out.append((title, ["(reference)" if i == 0 else c for i, c in enumerate(cells)]))
+    for name, entry in etas:
+        out.append(row(f"peak \\|η\\| at `{name}` (cm)", probe(name, "peak")))
+        for key, what in (("peak_time", "peak time"), ("half_peak_time", "half-peak time")):
+            title, cells = row(f"{what} at `{name}` (s)", probe(name, key))
+            unfinished = [c["probes"].get(name, {}).get("peaked") is False and c["probes"][name][key] is not None
+                          for c in columns]
+            out.append((title, [f"{v} (last row)" if u else v for v, u in zip(cells, unfinished)]))
+    out += [
+        row("wave speed from peak times (cm/s)", lambda c: c["wave_speed_peak"]),
+        row("wave speed from half-peak times (cm/s)", lambda c: c["wave_speed_half_peak"]),
+        row("long-wave speed √(R·C0/ρ_f) (cm/s)", lambda c: c["long_wave_speed"]),
+        row("with wall inertia √(R·C0/(ρ_f + ρ₁h/R)) (cm/s)", lambda c: c["long_wave_speed_inertia"]),
+        row("peak pressure (dyn/cm²)", lambda c: c["peak_pressure"]),
+        row("final total energy", lambda c: c["final_energy"]),
+        row("ledger max relative residual", lambda c: c["max_relative_residual"]),
+    ]
+    return out
+
+
+def markdown(data: Mapping[str, Any]) -> str:
+    """The whole ``report.md``: title, variants, table, failures, figures."""
+    columns = data["variants"]
+    lines = [f"# Comparison: {data['title']}" if data["title"] else "# Comparison", ""]
+    if data.get("vary"):
+        lines += [f"Varied: `--vary {data['vary']}`", ""]
+    common = [o for o in columns[0].get("overrides", []) if all(o in c.get("overrides", []) for c in columns)]
+    if common:
+        lines += ["Every variant: " + " ".join(f"`--set {o}`" for o in common), ""]
+    lines += ["Variants (results folder: case file, own overrides):", ""]
+    for c in columns:
+        sets = " ".join(f"`--set {o}`" for o in c.get("overrides", []) if o not in common)
+        lines.append(f"- `{c['out']}/`: `{c.get('case_file', '')}` {sets}".rstrip())
+    lines += ["", "| | " + " | ".join(f"`{c['label']}`" for c in columns) + " |",
+              "|---|" + "---|" * len(columns)]
+    lines += [f"| {title} | " + " | ".join(cells) + " |" for title, cells in rows(data)]
+    failed = [c for c in columns if c["status"] != "ok"]
+    if failed:
+        lines += ["", "Failures:", ""] + [f"- `{c['label']}`: {c['reason'] or 'no reason given'}" for c in failed]
+    if any(e.get("peaked") is False and e.get("peak") is not None for c in columns for e in c["probes"].values()):
+        lines += ["", ("(last row): the peak is on the last row, so the pulse may not have passed the probe yet; "
+                       "the wave speeds leave such probes out.")]
+    lines += ["", "![probe time series](probes.png)", "", "![η(z, t) on the lumen line](eta_spacetime.png)", ""]
+    return "\n".join(lines)
+
+
+def plot_probes(runs: Sequence[Any], path: Path) -> None:
+    """One panel per probe (every probe of any run), all runs overlaid against t."""
+    probes: dict[str, Mapping[str, Any]] = {}
+    for run in runs:
+        for p in run.probes:
+            probes.setdefault(p["name"], p)
+    fig = Figure(figsize=(8, 1.0 + 2.2 * max(1, len(probes))), layout="constrained")
+    axes = fig.subplots(max(1, len(probes)), 1, sharex=True, squeeze=False)[:, 0]
+    if not probes:
+        axes[0].text(0.5, 0.5, "no probes", ha="center", va="center", transform=axes[0].transAxes)
+    for ax, (name, p) in zip(axes, probes.items()):
+        for run in runs:
+            if name in run.series:
+                ax.plot(run.t, run.series[name], label=run.label)
+        where = _where(p) + (f", r = {p['r']:g}" if p.get("r") is not None else "")
+        ax.set_title(f"{name}: {p['quantity']} at {where}", fontsize="medium")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize="small")
+    axes[-1].set_xlabel("t (s)")
+    save_figure(fig, path)

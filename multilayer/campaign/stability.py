@@ -1,0 +1,663 @@
+"""``multilayer stability``: which coupler stays stable as the wall gets light, in one map.
+
+The added-mass effect (Causin, Gerbeau & Nobile 2005) makes partitioned
+schemes fail, or iterate more, when the thin layer next to the fluid is light
+against the fluid it moves: the ratio ρ₁h/(ρ_f R).  This command runs a grid
+of couplers × ratios (× ``--vary`` values, usually Δt) on one scene and says,
+for each run, whether it stayed stable, at what cost in iterations and wall
+time, or when it failed.
+
+It is a sibling of :mod:`multilayer.campaign.study` and uses its grid: a ratio is one
+more axis (:class:`~multilayer.campaign.study.Setting` ``ratio=<r>`` realised as
+``layers[L].density = r·ρ_f·R/h``), planned by
+:func:`~multilayer.campaign.study.plan_grid`, validated and run by
+:func:`~multilayer.campaign.study.invalid_runs` and
+:func:`~multilayer.campaign.study.run_variants` into ordinary results folders
+``OUT/<coupler>/ratio=<r>/<key=value>/...``.  Everything reported is read
+back from those folders.
+
+The measurements are pure functions of numbers and arrays
+(:func:`density_for_ratio`, :func:`mass_ratio`, :func:`initial_energy`,
+:func:`energy_excess`, :func:`energy_growth`, :func:`is_stable`,
+:func:`iteration_counts`, :func:`failure_time`).  See ``docs/stability.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import attrs
+import numpy as np
+
+from multilayer.campaign.executor import ExecutorError
+from multilayer.campaign.study import (
+    Planned,
+    grid_options,
+    invalid_runs,
+    plan_grid,
+    run_variants,
+)
+from multilayer.case.casefile import load_case
+from multilayer.case.grid import Setting, vary_axis
+from multilayer.case.keys import key_steps
+from multilayer.case.model import Case
+from multilayer.commands.main import INVALID, OK
+from multilayer.plugin.problems import MISSING, CaseError, Problem
+from multilayer.plugin.registry import Registry
+from multilayer.results.reading import RunData, without_nan
+
+#: a run is stable when its energy growth stays at or below this (relative round-off of the ledger)
+GROWTH_TOLERANCE = 1e-9
+#: ρ₁h/(ρ_f R) without ``--ratios``
+DEFAULT_RATIOS = "1,0.1,0.01,0.001"
+#: the grid axis of the ratio (folders ``ratio=<r>``)
+RATIO = "ratio"
+#: the scale of the energy growth never goes below this (a run with no energy and no work)
+TINY = 1e-300
+#: verdicts, best first, with their colours in the map
+VERDICTS = {"stable": "#43a047", "energy grew": "#fb8c00", "failed": "#e53935"}
+
+# -- measurements (pure) ---------------------------------------------------------
+
+
+def density_for_ratio(ratio: float, fluid_density: float, radius: float, thickness: float) -> float:
+    """The thin layer's density ρ₁ that makes ρ₁h/(ρ_f R) equal ``ratio``: ρ₁ = ratio·ρ_f·R/h.
+
+    Parameters
+    ----------
+    ratio : float
+        ρ₁h/(ρ_f R), > 0.
+    fluid_density : float
+        ρ_f (g/cm³).
+    radius : float
+        R, the lumen radius (cm).
+    thickness : float
+        h, the thin layer's thickness (cm).
+
+    Returns
+    -------
+    float
+        ρ₁ (g/cm³).
+
+    Examples
+    --------
+    >>> density_for_ratio(0.1, 1.0, 0.5, 0.1)
+    0.5
+    >>> round(density_for_ratio(0.22, 1.0, 0.5, 0.1), 12)  # pulse-koiter.toml's own wall
+    1.1
+    """
+    return ratio * fluid_density * radius / thickness
+
+
+def mass_ratio(density: float, thickness: float, fluid_density: float, radius: float) -> float:
+    """ρ₁h/(ρ_f R), the thin layer's mass per area over the fluid's across the radius.
+
+    >>> mass_ratio(1.1, 0.1, 1.0, 0.5)
+    0.22000000000000003
+    >>> mass_ratio(density_for_ratio(1e-3, 1.0, 0.5, 0.1), 0.1, 1.0, 0.5)
+    0.001
+    """
+    return density * thickness / (fluid_density * radius)
+
+
+def _row_sums(series: Mapping[str, np.ndarray], prefix: str) -> np.ndarray:
+    """Per row, the sum of every column whose name starts with ``prefix`` (zeros when there is none)."""
+    rows = len(series.get("energy.total", ()))
+    columns = [np.asarray(v, dtype=float) for k, v in series.items() if k.startswith(prefix)]
+    return np.sum(columns, axis=0) if columns else np.zeros(rows)
+
+
+def initial_energy(series: Mapping[str, np.ndarray]) -> float | None:
+    """E₀, the energy before the first step, from the first row of a ledger.
+
+    The runner closes each step as Eⁿ⁺¹ − Eⁿ − W + D = residual
+    (:func:`multilayer.run.ledger.close`), so E₀ = E₁ − W₁ + D₁ − residual₁
+    with W₁ the sum of the ``work.*`` columns and D₁ of the
+    ``dissipation.*`` columns of the first row, and residual₁ its
+    ``energy.residual`` (0 when the column is missing).  This is the very
+    E₀ the runner used, up to round-off.
+
+    Parameters
+    ----------
+    series : mapping of str to ndarray
+        ``series.csv`` by column (:func:`multilayer.results.reading.read_series`).
+
+    Returns
+    -------
+    float or None
+        E₀; None without an ``energy.total`` column or rows.
+
+    Examples
+    --------
+    >>> initial_energy({"energy.total": np.array([2.5, 3.0]), "work.inlet": np.array([1.0, 1.0]),
+    ...                 "dissipation.viscous": np.array([0.25, 0.5]), "energy.residual": np.array([-0.25, 0.0])})
+    2.0
+    """
+    energy = series.get("energy.total")
+    if energy is None or not len(energy):
+        return None
+    residual = series.get("energy.residual", np.zeros(len(energy)))
+    return float(energy[0] - _row_sums(series, "work.")[0] + _row_sums(series, "dissipation.")[0] - residual[0])
+
+
+def energy_excess(series: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Eₙ − E₀ − Wₙ per row: how much more energy the run holds than it started with plus the work put in.
+
+    Wₙ is the cumulative sum over the first n rows of every ``work.*``
+    column; E₀ is :func:`initial_energy`.  By the ledger this is
+    Σₖ (residualₖ − Dₖ): ≤ round-off while the dissipation is ≥ 0.
+
+    Examples
+    --------
+    >>> energy_excess({"energy.total": np.array([1.0, 1.5, 4.0]), "work.p": np.array([1.0, 1.0, 1.0]),
+    ...                "dissipation.v": np.array([0.0, 0.5, 0.5])})
+    array([ 0. , -0.5,  1. ])
+    """
+    energy = series.get("energy.total")
+    if energy is None or not len(energy):
+        return np.zeros(0)
+    return np.asarray(energy, dtype=float) - initial_energy(series) - np.cumsum(_row_sums(series, "work."))
+
+
+def energy_growth(series: Mapping[str, np.ndarray]) -> float | None:
+    """max over the steps of (Eₙ − E₀ − Wₙ) / max(|E₀| + maxₙ |Wₙ|, tiny): > 0 the run made energy.
+
+    Parameters
+    ----------
+    series : mapping of str to ndarray
+        ``series.csv`` by column: ``energy.total``, the ``work.*`` and
+        ``dissipation.*`` columns and ``energy.residual``.
+
+    Returns
+    -------
+    float or None
+        The largest relative excess of :func:`energy_excess`; None without
+        rows; inf when a value is not finite (a run that blew up).
+
+    Examples
+    --------
+    A run from rest that takes in 0.5 a step and dissipates 0.1 a step
+    stays below the work put in (by 0.1 of it, at best, after step 1):
+
+    >>> calm = {"energy.total": np.array([0.4, 0.8]), "work.inlet": np.array([0.5, 0.5]),
+    ...         "dissipation.viscous": np.array([0.1, 0.1])}
+    >>> energy_growth(calm)
+    -0.09999999999999998
+
+    One that holds 1.2 after taking in 1 is above it, by 0.2 of the work:
+
+    >>> energy_growth({"energy.total": np.array([0.5, 1.2]), "work.inlet": np.array([0.5, 0.5])})
+    0.19999999999999996
+    """
+    excess = energy_excess(series)
+    if not len(excess):
+        return None
+    work = np.cumsum(_row_sums(series, "work."))
+    e0 = initial_energy(series)
+    if not (np.all(np.isfinite(excess)) and np.all(np.isfinite(work))):
+        return math.inf
+    scale = max(abs(e0) + float(np.max(np.abs(work))), TINY)
+    return float(np.max(excess)) / scale
+
+
+def is_stable(status: str, growth: float | None, tolerance: float = GROWTH_TOLERANCE) -> bool:
+    """A run is stable when it ended ok and its :func:`energy_growth` is at most ``tolerance``.
+
+    ``tolerance`` (1e-9) is the ledger's round-off: every step's identity
+    closes to ~1e-13 relative and the tests assert ≤ 1e-9, so a stable
+    scheme (dissipation ≥ 0) stays below it over thousands of steps, while
+    an instability grows geometrically and passes it within a few steps.
+
+    Examples
+    --------
+    >>> is_stable("ok", -0.3), is_stable("ok", 2e-10), is_stable("ok", 1e-6)
+    (True, True, False)
+    >>> is_stable("failed", -0.3), is_stable("ok", None)
+    (False, False)
+    """
+    return status == "ok" and growth is not None and growth <= tolerance
+
+
+def iteration_counts(series: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """Sub-iterations per step from the ``iterations`` column.
+
+    A coupler without sub-iterations writes no such column: it solves once
+    per step, counted as 1 per row with ``reported`` False.
+
+    Returns
+    -------
+    dict
+        ``reported``, ``total``, ``mean``, ``max``; all None but
+        ``reported`` without rows.
+
+    Examples
+    --------
+    >>> iteration_counts({"t": np.array([1.0, 2.0, 3.0]), "iterations": np.array([3.0, 5.0, 4.0])})
+    {'reported': True, 'total': 12, 'mean': 4.0, 'max': 5}
+    >>> iteration_counts({"t": np.array([1.0, 2.0])})
+    {'reported': False, 'total': 2, 'mean': 1.0, 'max': 1}
+    """
+    column = series.get("iterations")
+    if column is None:
+        rows = len(series.get("t", ()))
+        return {"reported": False, "total": rows if rows else None, "mean": 1.0 if rows else None,
+                "max": 1 if rows else None}
+    counts = np.asarray(column, dtype=float)
+    counts = counts[np.isfinite(counts)]
+    if not len(counts):
+        return {"reported": True, "total": None, "mean": None, "max": None}
+    return {"reported": True, "total": int(counts.sum()), "mean": float(counts.mean()), "max": int(counts.max())}
+
+
+def failure_time(series: Mapping[str, np.ndarray]) -> float | None:
+    """The time of the last row written (s), how far a failed run got; None without rows.
+
+    The runner does not write the row of a step that fails its checks
+    (a non-finite value, a collapsing wall), so the failure is in the step
+    after this time; the run's ``reason`` names the time it saw.
+
+    >>> failure_time({"t": np.array([1e-4, 2e-4])}), failure_time({})
+    (0.0002, None)
+    """
+    t = series.get("t")
+    return float(t[-1]) if t is not None and len(t) else None
+
+
+# -- the command line ------------------------------------------------------------
+
+
+def parse_ratios(text: str) -> list[tuple[str, float]]:
+    """``--ratios 1,0.1,...`` → (text, value) pairs; CaseError at ``--ratios`` for anything but distinct numbers > 0.
+
+    >>> parse_ratios("1, 1e-3")
+    [('1', 1.0), ('1e-3', 0.001)]
+    >>> parse_ratios("1,0,x")
+    Traceback (most recent call last):
+    ...
+    multilayer.plugin.problems.CaseError: --ratios = '0': expected a number > 0 (ρ₁h/(ρ_f R))
+    --ratios = 'x': expected a number > 0 (ρ₁h/(ρ_f R))
+    """
+    problems, out = [], []
+    for item in (s.strip() for s in text.split(",")):
+        try:
+            value = float(item)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            problems.append(Problem("--ratios", item, "expected a number > 0 (ρ₁h/(ρ_f R))"))
+        elif value in (v for _, v in out):
+            problems.append(Problem("--ratios", item, "given twice"))
+        else:
+            out.append((item, value))
+    if problems:
+        raise CaseError(problems)
+    return out
+
+
+def layer_problems(case: Case, layer: int) -> list[Problem]:
+    """What keeps ``layers[layer]`` of ``case`` from carrying the ratio: it must exist, be thin and have h and ρ₁."""
+    if case.fluid is None:
+        return [Problem("fluid", MISSING, "the mass ratio ρ₁h/(ρ_f R) needs a fluid; the case has none")]
+    thin = [f"layers[{i}] ({s.model})" for i, s in enumerate(case.layers) if s.thin]
+    hint = "thin layers here: " + ", ".join(thin) if thin else "the case has no thin layer"
+    if not 0 <= layer < len(case.layers):
+        return [Problem("--layer", layer, f"expected a layer index 0..{len(case.layers) - 1}" if case.layers
+                        else "the case has no layers", hint)]
+    spec = case.layers[layer]
+    if not spec.thin:
+        return [Problem("--layer", layer, f"layers[{layer}] is a thick layer ({spec.model}); the ratio "
+                        "ρ₁h/(ρ_f R) is that of a thin layer", hint)]
+    return [Problem(f"layers[{layer}].{key}", MISSING, f"the ratio ρ₁h/(ρ_f R) needs the thin layer's {key}")
+            for key in ("thickness", "density") if not isinstance(spec.params.get(key), int | float)]
+
+
+def _density_keys(layer: int) -> list[list[str | int]]:
+    return [["fluid", "density"], ["geometry", "radius"], ["layers", layer, "thickness"], ["layers", layer, "density"]]
+
+
+def vary_problems(axes: Sequence[tuple[str, Sequence[str]]], layer: int) -> list[Problem]:
+    """A ``--vary`` key that enters ρ₁ = ratio·ρ_f·R/h (or holds it) would break the ratios: a problem each.
+
+    >>> [str(p) for p in vary_problems([("time.dt", ["1", "2"]), ("geometry.radius", ["1", "2"])], 0)]
+    ["--vary = 'geometry.radius=1,2': the ratios set layers[0].density from fluid.density, geometry.radius and \
+layers[0].thickness; change those with --set"]
+    """
+    out = []
+    for key, values in axes:
+        steps = key_steps(key) or []
+        if any(target[:len(steps)] == steps for target in _density_keys(layer)):
+            out.append(Problem("--vary", f"{key}={','.join(values)}", f"the ratios set layers[{layer}].density "
+                               f"from fluid.density, geometry.radius and layers[{layer}].thickness; change those "
+                               "with --set"))
+    return out
+
+
+@attrs.frozen
+class Ratios:
+    """The ratios of a map and how they are realised on one case."""
+
+    layer: int
+    model: str
+    thickness: float  #: h (cm)
+    fluid_density: float  #: ρ_f (g/cm³)
+    radius: float  #: R (cm)
+    values: tuple[tuple[str, float], ...]  #: (as given, value)
+
+    @classmethod
+    def of(cls, case: Case, layer: int, values: Sequence[tuple[str, float]]) -> Ratios:
+        spec = case.layers[layer]
+        return cls(layer, spec.model, float(spec.params["thickness"]), float(case.fluid.params["density"]),
+                   case.geometry.radius, tuple(values))
+
+    def density(self, ratio: float) -> float:
+        return density_for_ratio(ratio, self.fluid_density, self.radius, self.thickness)
+
+    def axis(self) -> list[Setting]:
+        """The grid axis: ``ratio=<r>`` set as ``layers[L].density=<ρ₁>``."""
+        return [Setting(RATIO, text, f"layers[{self.layer}].density={self.density(value)!r}")
+                for text, value in self.values]
+
+    def describe(self) -> dict[str, Any]:
+        return {"layer": {"index": self.layer, "path": f"layers[{self.layer}]", "model": self.model,
+                          "thickness": self.thickness},
+                "fluid_density": self.fluid_density, "radius": self.radius,
+                "ratios": [{"text": text, "ratio": value, "density": self.density(value)}
+                           for text, value in self.values]}
+
+
+# -- collecting --------------------------------------------------------------------
+
+
+def _layer_value(case: Mapping[str, Any], layer: int, key: str) -> Any:
+    layers = case.get("layers") or []
+    return layers[layer].get(key) if layer < len(layers) else None
+
+
+def measure_run(planned: Planned, run: RunData, layer: int) -> dict[str, Any]:
+    """One run's row of ``stability.json``, from its own ``summary.json`` and ``series.csv``."""
+    s, case, series = run.summary, run.case, run.series
+    values = dict(planned.values)
+    time = case.get("time") or {}
+    status = s.get("status", "failed")
+    density, thickness = _layer_value(case, layer, "density"), _layer_value(case, layer, "thickness")
+    fluid_density = (case.get("fluid") or {}).get("density")
+    radius = (case.get("geometry") or {}).get("radius")
+    known = all(isinstance(v, int | float) for v in (density, thickness, fluid_density, radius))
+    growth = energy_growth(series)
+    excess = energy_excess(series)
+    peak = int(np.argmax(excess)) if len(excess) and np.all(np.isfinite(excess)) else None
+    return {
+        "label": planned.label,
+        "folder": planned.folder,
+        "coupler": planned.coupler,
+        "model": (case.get("coupler") or {}).get("model"),
+        "ratio": float(values.pop(RATIO)),
+        "values": values,
+        "overrides": list(planned.variant.overrides),
+        "density": density,
+        "ratio_realised": mass_ratio(density, thickness, fluid_density, radius) if known else None,
+        "dt": time.get("dt"),
+        "status": status,
+        "reason": s.get("reason", "" if s else "no summary.json written"),
+        "failure_time_s": failure_time(series) if status != "ok" else None,
+        "steps": s.get("steps"),
+        "steps_planned": round(time["end"] / time["dt"]) if time.get("end") and time.get("dt") else None,
+        "iterations": iteration_counts(series),
+        "wall_time_s": s.get("wall_time_s"),
+        "energy_initial": initial_energy(series),
+        "energy_growth": growth,
+        "energy_growth_time_s": float(series["t"][peak]) if peak is not None and "t" in series else None,
+        "stable": is_stable(status, growth),
+        "verdict": verdict(status, growth),
+    }
+
+
+def verdict(status: str, growth: float | None) -> str:
+    """``stable``, ``energy grew`` (ended ok, :func:`is_stable` false) or ``failed``.
+
+    >>> verdict("ok", -1.0), verdict("ok", 1e-3), verdict("failed", -1.0)
+    ('stable', 'energy grew', 'failed')
+    """
+    if status != "ok":
+        return "failed"
+    return "stable" if is_stable(status, growth) else "energy grew"
+
+
+# -- report ------------------------------------------------------------------------
+
+
+def panels(data: Mapping[str, Any]) -> list[tuple[str, dict[tuple[str, float], dict[str, Any]]]]:
+    """One panel per combination of the ``--vary`` values: (title, run by (coupler, ratio))."""
+    groups: dict[tuple, dict[tuple[str, float], dict[str, Any]]] = {}
+    for row in data["runs"]:
+        groups.setdefault(tuple(row["values"].items()), {})[row["coupler"], row["ratio"]] = row
+    out = []
+    for values, cells in groups.items():
+        dts = {r["dt"] for r in cells.values() if r["dt"] is not None}  # None: a run without summary.json
+        parts = [f"Δt = {_num(dts.pop())} s"] if len(dts) == 1 else []
+        parts += [f"{k} = {v}" for k, v in values if k != "time.dt"]
+        out.append((", ".join(parts) or "all runs", cells))
+    return out
+
+
+def _num(value: float | None, digits: int = 3) -> str:
+    return "—" if value is None else f"{value:.{digits}g}"
+
+
+def _ratio_order(data: Mapping[str, Any]) -> list[float]:
+    """The ratios, heaviest wall first: the map gets harder to the right."""
+    return sorted((r["ratio"] for r in data["ratios"]), reverse=True)
+
+
+def _iterations(row: Mapping[str, Any]) -> str:
+    it = row["iterations"]
+    if it["mean"] is None:
+        return "— it/step"
+    return f"{it['mean']:.1f} it/step" + (f" (max {it['max']})" if it["reported"] else "")
+
+
+def status_cell(row: Mapping[str, Any]) -> str:
+    """A cell of the map's table: ``stable, 1.0 it/step, 3.2 s``, ``energy grew (…)``, ``failed after t = … s``.
+
+    A failed run's time is that of its last row (:func:`failure_time`):
+    the run got that far, then failed.
+    """
+    if row["verdict"] == "failed":
+        t = row["failure_time_s"]
+        return "failed in the first step" if t is None else f"failed after t = {_num(t)} s"
+    head = "stable" if row["stable"] else f"energy grew ({row['energy_growth']:.2e})"
+    return f"{head}, {_iterations(row)}, {_num(row['wall_time_s'], 2)} s"
+
+
+def growth_cell(row: Mapping[str, Any]) -> str:
+    """A cell of the energy-growth table (the rows written, for a failed run)."""
+    growth = row["energy_growth"]
+    text = "—" if growth is None else ("∞" if math.isinf(growth) else f"{growth:.2e}")
+    return text + (" (failed)" if row["verdict"] == "failed" else "")
+
+
+def markdown(data: Mapping[str, Any]) -> str:
+    """``stability.md``: the command, the ratios and densities, then per panel the map and the energy growth."""
+    layer = data["layer"]
+    ratios = _ratio_order(data)
+    couplers = [c["label"] for c in data["couplers"]]
+    lines = [f"# Stability map: {data['title']}" if data["title"] else "# Stability map", "",
+             "    " + data["command"], "",
+             f"The ratio ρ₁h/(ρ_f R) is set through `{layer['path']}.density` ({layer['model']}, h = "
+             f"{_num(layer['thickness'], 6)} cm), ρ_f = {_num(data['fluid_density'], 6)} g/cm³, R = "
+             f"{_num(data['radius'], 6)} cm: ρ₁ = ratio · ρ_f · R / h.", "",
+             "| ratio ρ₁h/(ρ_f R) | ρ₁ (g/cm³) |", "|---|---|"]
+    lines += [f"| {r['text']} | {r['density']:.6g} |" for r in data["ratios"]]
+    lines += ["", f"**stable**: the run ended ok and at no step held more energy than it started with plus the "
+              f"work put in, to round-off: energy growth = maxₙ (Eₙ − E₀ − Wₙ) / (|E₀| + maxₙ |Wₙ|) ≤ "
+              f"{_num(data['tolerance'])}. **energy grew**: ended ok above that. **failed**: the run stopped "
+              "after its last row, whose time is given (the reason below names where and when). Iterations: "
+              "sub-iterations per step (mean, max) from the `iterations` column; a coupler that writes none "
+              "solves once per step (1 it/step). Wall time: of each run, as its `summary.json` has it.", ""]
+    for title, cells in panels(data):
+        head = "| coupler | " + " | ".join(f"ratio {_num(r, 6)}" for r in ratios) + " |"
+        rule = "|---|" + "---|" * len(ratios)
+        lines += [f"## {title}", "", head, rule]
+        lines += ["| `" + c + "` | " + " | ".join(status_cell(cells[c, r]) if (c, r) in cells else "—"
+                                                    for r in ratios) + " |" for c in couplers]
+        lines += ["", "Energy growth maxₙ (Eₙ − E₀ − Wₙ) / (|E₀| + maxₙ |Wₙ|):", "", head, rule]
+        lines += ["| `" + c + "` | " + " | ".join(growth_cell(cells[c, r]) if (c, r) in cells else "—"
+                                                    for r in ratios) + " |" for c in couplers]
+        lines.append("")
+    unstable = [r for r in data["runs"] if not r["stable"]]
+    lines += ["## Runs that are not stable", ""]
+    if unstable:
+        for r in unstable:
+            what = r["reason"] or f"energy growth {growth_cell(r)}"
+            lines.append(f"- `{r['label']}` ({r['verdict']}, {_num(r['steps'])} of {_num(r['steps_planned'])} "
+                         f"steps): {what}")
+    else:
+        lines.append("None: every run is stable.")
+    silent = sorted({r["coupler"] for r in data["runs"] if not r["iterations"]["reported"]}, key=couplers.index)
+    if silent:
+        lines += ["", "No `iterations` column (one solve per step, counted as 1 it/step): "
+                  + ", ".join(f"`{c}`" for c in silent) + "."]
+    lines += ["", "![stability map](stability.png)", ""]
+    return "\n".join(lines)
+
+
+def _annotation(row: Mapping[str, Any]) -> str:
+    if row["verdict"] == "failed":
+        t = row["failure_time_s"]
+        return "failed\nin step 1" if t is None else f"failed after\nt = {_num(t)} s"
+    it = row["iterations"]
+    text = "— it/step" if it["mean"] is None else f"{it['mean']:.1f} it/step"
+    text += f"\nmax {it['max']}" if it["reported"] and it["max"] is not None else ""
+    return text + ("" if row["stable"] else f"\ngrowth {row['energy_growth']:.1e}")
+
+
+def plot(data: Mapping[str, Any], path: Path) -> None:
+    """``stability.png``: a panel per :func:`panels` entry, couplers × ratios, coloured by verdict."""
+    from matplotlib.colors import to_rgb
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    from multilayer.results.figures import save_figure
+
+    ratios = _ratio_order(data)
+    couplers = [c["label"] for c in data["couplers"]]
+    groups = panels(data)
+    label_width = 0.08 * max(len(c) for c in couplers)  # inches of the coupler names
+    fig = Figure(figsize=(1.0 + label_width + max(3.5, 1.5 * len(ratios)) * len(groups), 2.0 + 0.8 * len(couplers)),
+                 layout="constrained")
+    axes = fig.subplots(1, len(groups), sharey=True, squeeze=False)[0]
+    blank = to_rgb("#e0e0e0")
+    for ax, (title, cells) in zip(axes, groups):
+        image = np.array([[to_rgb(VERDICTS[cells[c, r]["verdict"]]) if (c, r) in cells else blank for r in ratios]
+                          for c in couplers])
+        ax.imshow(image, aspect="auto", interpolation="nearest")
+        for i, c in enumerate(couplers):
+            for j, r in enumerate(ratios):
+                if (c, r) in cells:
+                    ax.text(j, i, _annotation(cells[c, r]), ha="center", va="center", fontsize="small")
+        ax.set_xticks(range(len(ratios)), [f"{r:g}" for r in ratios])
+        ax.set_yticks(range(len(couplers)), couplers)
+        ax.set_xticks(np.arange(len(ratios) + 1) - 0.5, minor=True)
+        ax.set_yticks(np.arange(len(couplers) + 1) - 0.5, minor=True)
+        ax.grid(which="minor", color="white", linewidth=2)
+        ax.tick_params(which="minor", length=0)
+        ax.set_title(title, fontsize="small")
+    axes[0].set_ylabel("coupler")
+    fig.supxlabel("wall-to-fluid mass ratio ρ₁h/(ρ_f R) (dimensionless; lighter wall to the right)",
+                  fontsize="medium")
+    fig.legend(handles=[Patch(color=colour, label=name) for name, colour in VERDICTS.items()],
+               loc="outside upper center", ncols=len(VERDICTS), fontsize="small")
+    save_figure(fig, path)
+
+
+# -- the command -------------------------------------------------------------------
+
+
+def _invalid(head: str, problems: Sequence[Problem]) -> int:
+    print(head, file=sys.stderr)
+    print(str(CaseError(problems)), file=sys.stderr)
+    return INVALID
+
+
+def main(case_file: Path, out: Path, couplers: str | None, ratios: str | None, varies: Sequence[str], layer: int,
+         jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
+         command: str = "multilayer stability", scheduler: str | None = None) -> int:
+    """``multilayer stability``: 0 the map is made (failed runs are results), 2 invalid input.
+
+    Parameters
+    ----------
+    case_file : Path
+        The scene.
+    out : Path
+        The map's folder; runs go to ``OUT/<coupler>/ratio=<r>/<key=value>/``.
+    couplers : str or None
+        ``--couplers`` (:func:`multilayer.campaign.study.parse_couplers`); None: the case's own.
+    ratios : str or None
+        ``--ratios``, comma separated values of ρ₁h/(ρ_f R); None: :data:`DEFAULT_RATIOS`.
+    varies : sequence of str
+        Every ``--vary KEY=A,B,...``.
+    layer : int
+        The thin layer whose density realises the ratio.
+    jobs : int
+        Runs at once.
+    overrides : sequence of str
+        ``--set``, applied to every run before the coupler, the density and the varied values.
+    registry : Registry
+        The plugins.
+    plugins : sequence of str
+        ``--plugin`` modules, imported again in each worker.
+    command : str
+        The command line, written at the top of ``stability.md``.
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
+    out = Path(out)
+    try:
+        choices, axes, problems = grid_options(case_file, out, couplers, varies, jobs, overrides, registry)
+        case = load_case(case_file, overrides, registry)
+    except CaseError as exc:
+        return _invalid(f"{case_file}: invalid case", exc.problems)
+    try:
+        values = parse_ratios(DEFAULT_RATIOS if ratios is None else ratios)
+    except CaseError as exc:
+        problems += exc.problems
+    problems += layer_problems(case, layer) + vary_problems(axes, layer)
+    if problems:
+        return _invalid("stability: invalid command line", problems)
+    realised = Ratios.of(case, layer, values)
+    planned = plan_grid(case_file, choices, [realised.axis(), *(vary_axis(k, v) for k, v in axes)], overrides)
+    variants = [p.variant for p in planned]
+    if invalid_runs("stability", variants, registry):
+        return INVALID
+    out.mkdir(parents=True, exist_ok=True)
+    folders = {p.label: out / p.folder for p in planned}
+    try:
+        runs = run_variants(variants, folders, jobs, registry, plugins, scheduler)
+    except ExecutorError as exc:
+        print(f"stability: {exc}", file=sys.stderr)
+        return INVALID
+    data = {
+        "command": command,
+        "case_file": str(case_file),
+        "title": case.title,
+        "overrides": list(overrides),
+        **realised.describe(),
+        "couplers": [attrs.asdict(c) for c in choices],
+        "vary": [{"key": k, "values": v} for k, v in axes],
+        "tolerance": GROWTH_TOLERANCE,
+        "runs": [measure_run(p, runs[p.label], layer) for p in planned],
+    }
+    (out / "stability.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
+    (out / "stability.md").write_text(markdown(data))
+    plot(data, out / "stability.png")
+    stable = sum(r["stable"] for r in data["runs"])
+    print(f"map: {out / 'stability.md'} ({stable} of {len(data['runs'])} runs stable)")
+    return OK

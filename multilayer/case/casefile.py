@@ -1,0 +1,646 @@
+"""TOML case files → a validated :class:`multilayer.case.model.Case`.
+
+Every mistake is reported in the user's words — key path, value, what was
+expected, the nearest valid name — and all of them at once
+(:class:`~multilayer.plugin.problems.CaseError`).  Plugin parameters are checked
+against the :class:`~multilayer.plugin.records.Param` schema each plugin registers;
+the core sections are checked the same way against the schemas below.
+See ``docs/case-files.md`` for the format.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tomllib
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import attrs
+
+from multilayer.case import resources
+from multilayer.case.keys import (
+    _blame_overrides,
+    apply_overrides,
+    key_steps,
+    parse_value,
+)
+from multilayer.case.model import (
+    Case,
+    Geometry,
+    Initial,
+    LayerSpec,
+    Limits,
+    Loads,
+    MeshSpec,
+    ModelSpec,
+    Output,
+    Probe,
+    TimeSpec,
+)
+from multilayer.case.partial import NotBuilt, Unbuilt
+from multilayer.functions.domain import Domain, defect
+from multilayer.functions.formula import Formula, FormulaError
+from multilayer.functions.loads import FormulaPressure, load_from_spec
+from multilayer.numerics.linsolve import BACKENDS, FACTORS, REUSE_MODES, SINGLE, Reuse
+from multilayer.plugin.problems import (
+    MISSING,
+    CaseError,
+    Problem,
+    check_params,
+    did_you_mean,
+)
+from multilayer.plugin.records import Param
+from multilayer.plugin.registry import Registry
+from multilayer.wall import probe as wall_probe
+from multilayer.wall.checks import abstract_problem, raised, type_problem
+from multilayer.wall.layer import Layer
+
+__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems",
+           "coupler_objections", "key_steps", "parse_value"]
+
+SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver",
+            "sweep")
+
+GEOMETRY = (
+    Param("length", "L", "cm", gt=0.0, doc="channel length"),
+    Param("radius", "R", "cm", gt=0.0, doc="reference radius of the lumen"),
+)
+MESH = (
+    Param("nz", type=int, ge=1, doc="cells along z, shared by every field"),
+    Param("nr", type=int, ge=1, doc="fluid cells across the lumen"),
+    Param("order", type=int, choices=(1, 2), doc="polynomial order of every field"),
+    Param("grading", default=1.0, ge=1.0, doc="fluid refinement toward the wall (1 = uniform)"),
+)
+TIME = (
+    Param("end", "T", "s", gt=0.0, doc="final time"),
+    Param("dt", "Δt", "s", gt=0.0, doc="time step"),
+)
+#: radial cells of a thick layer: a core key, not a plugin parameter
+CELLS = Param("cells", type=int, ge=1, default=4, doc="radial cells of a thick band")
+LOAD_KEYS = ("inlet", "outlet", "external", "interface")
+QUANTITIES = ("eta", "v", "d_z", "d_r", "u_z", "u_r", "p", "flow_rate")
+FLUID_QUANTITIES = ("u_z", "u_r", "p", "flow_rate")
+LINE_QUANTITIES = ("eta", "v")
+POINT_QUANTITIES = ("d_z", "d_r", "u_z", "u_r", "p")
+PROBE = (
+    Param("name", type=str, default=None, doc="column name in series.csv"),
+    Param("quantity", type=str, choices=QUANTITIES, doc="what is measured"),
+    Param("z", "z", "cm", doc="axial position"),
+    Param("r", "r", "cm", default=None,
+          doc="radial position in the reference configuration: Lagrangian in the wall, r̂ of the ALE map in the fluid"),
+    Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
+)
+OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
+SOLVER = (
+    Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
+    Param("reuse", type=str, default="krylov", choices=REUSE_MODES,
+          doc="a changing matrix: 'krylov' (GMRES preconditioned by an earlier factorization) or 'none' "
+              "(factorize every step)"),
+    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1,
+          doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
+    Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
+          doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
+    Param("factors", type=str, default=Reuse().factors, choices=FACTORS,
+          doc="precision of a changing matrix's factorizations: 'double', or 'single' (half their memory, "
+              "faster; every solve by GMRES on them to the same tolerance; SuperLU only)"),
+    Param("factorization_cost", default=Reuse().factorization_cost, gt=0.0,
+          doc="a factorization's cost in GMRES iterations: the iterations held factors cost beyond what they "
+              "needed when young are added up, and at this sum they are replaced (reuse = 'krylov'; default: "
+              "14 up to 70k unknowns, then growing like their square root; a very large value: only at "
+              "max_iterations)"),
+    Param("threads", type=int, default=1, ge=0,
+          doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
+    Param("max_displacement", "", "R", default=0.5, gt=0.0,
+          doc="stop the run when |η| on the lumen exceeds this fraction of R"),
+    Param("energy_margin", default=0.01, gt=0.0,
+          doc="stop the run when the energy exceeds initial energy + work by this fraction of their scale"),
+)
+#: relative tolerance on end/dt being a whole number of steps
+STEPS_TOL = 1e-6
+
+
+def load_case(path: Path | str, overrides: Iterable[str] = (), registry: Registry | None = None) -> Case:
+    """Read, override and validate a case file.
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML case file.  Table files it names are relative to its folder.
+    overrides : iterable of str
+        ``dotted.key=value`` strings applied before validation
+        (``time.dt=5e-5``, ``layers[0].young=1e6``, ``fluid=none``).
+    registry : Registry, optional
+        The plugins to validate against; all installed ones by default.
+
+    Raises
+    ------
+    CaseError
+        Listing every problem found, each with its key path.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise CaseError([Problem(str(path), MISSING, "no such case file")]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseError([Problem(str(path), MISSING, f"cannot read the case file ({exc})")]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError([Problem(str(path), MISSING, f"invalid TOML: {exc}")]) from None
+    overrides = list(overrides)
+    problems = apply_overrides(data, overrides)
+    if problems:
+        raise CaseError(problems)
+    try:
+        return validate_data(data, path.parent, registry or Registry.load())
+    except CaseError as exc:
+        raise CaseError(_blame_overrides(exc.problems, overrides)) from None
+
+
+def validate_data(data: Mapping[str, Any], base_dir: Path | str = ".", registry: Registry | None = None) -> Case:
+    """Validate parsed case data and build the :class:`~multilayer.case.model.Case`.
+
+    Raises
+    ------
+    CaseError
+        Listing every problem found.
+    """
+    registry = registry or Registry.load()
+    return _Validator(registry, Path(base_dir)).case(data)
+
+
+def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
+    """Reasons the case's coupler gives against the case (its optional ``check_case``).
+
+    The coupler factory is called with the case's coupler parameters; a
+    ``ValueError`` it raises and every string its ``check_case(case)``
+    returns become problems at ``coupler.model``.  (Validation asks the
+    coupler itself, in the same pass as every other check.)
+    """
+    record = registry.get("coupler", case.coupler.model).record
+    try:
+        coupler = record.factory(**case.coupler.params)
+    except ValueError as exc:
+        return [Problem(case.coupler.path, MISSING, f"{case.coupler.model}: {exc}")]
+    return coupler_objections(coupler, case)
+
+
+def coupler_objections(coupler: Any, case: Case) -> list[Problem]:
+    """Every string ``coupler.check_case(case)`` returns, as a problem at ``coupler.model``.
+
+    ``case`` may have placeholders for parts that could not be built
+    (:mod:`multilayer.case.partial`); a coupler that reads one is not asked now.
+    """
+    check = getattr(coupler, "check_case", None)
+    if check is None:
+        return []
+    try:
+        reasons = list(check(case))
+    except NotBuilt:
+        return []
+    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in reasons]
+
+
+# -- overrides -------------------------------------------------------------
+
+
+# -- validation -------------------------------------------------------------
+
+
+class _Validator:
+    """One pass over a case: collects every problem, builds the case when there are none."""
+
+    def __init__(self, registry: Registry, base_dir: Path):
+        self.registry = registry
+        self.base_dir = base_dir
+        self.problems: list[Problem] = []
+        #: False once a layer is invalid: then H and the line count are unknown
+        self.stack_known = True
+        #: the coupler built from the case, when it could be: asked for its objections
+        self.coupler_object: Any = None
+        #: the layer objects built from the case, by key path
+        self.built_layers: dict[str, Layer] = {}
+
+    def add(self, problems: Iterable[Problem]) -> None:
+        self.problems.extend(problems)
+
+    def section(self, data: Mapping[str, Any], name: str, schema: tuple[Param, ...]) -> dict[str, Any]:
+        required = [p.name for p in schema if p.required]
+        if name not in data and required:
+            self.problems.append(Problem(name, MISSING, f"missing; expected a [{name}] table with {', '.join(required)}"))
+            return {}
+        values, problems = check_params(data.get(name, {}), schema, name)
+        self.add(problems)
+        return values
+
+    def mark(self) -> int:
+        """How many problems there are so far: a part is built when none were added since its mark."""
+        return len(self.problems)
+
+    def part(self, where: str, mark: int, build: Callable[[], Any]) -> Any:
+        """``build()`` when no problem was added since ``mark``, else a placeholder (:class:`Unbuilt`)."""
+        return build() if len(self.problems) == mark else Unbuilt(where)
+
+    def case(self, data: Mapping[str, Any]) -> Case:
+        if not isinstance(data, Mapping):
+            raise CaseError([Problem("case", data, "expected a table of sections")])
+        self.add(
+            Problem(key, value, "unknown section", did_you_mean(key, SECTIONS))
+            for key, value in data.items()
+            if key not in SECTIONS
+        )
+        parts: dict[str, Any] = {}
+        mark = self.mark()
+        title = data.get("title", "")
+        if not isinstance(title, str):
+            self.problems.append(Problem("title", title, "expected a string"))
+        parts["title"] = self.part("title", mark, lambda: title)
+        mark = self.mark()
+        geometry = self.section(data, "geometry", GEOMETRY)
+        parts["geometry"] = self.part("geometry", mark, lambda: Geometry(**geometry))
+        mark = self.mark()
+        mesh = self.section(data, "mesh", MESH)
+        parts["mesh"] = self.part("mesh", mark, lambda: MeshSpec(**mesh))
+        mark = self.mark()
+        time = self.section(data, "time", TIME)
+        self.check_steps(time)
+        parts["time"] = self.part("time", mark, lambda: TimeSpec(**time))
+        mark = self.mark()
+        fluid = self.fluid(data.get("fluid"))
+        parts["fluid"] = self.part("fluid", mark, lambda: fluid)
+        mark = self.mark()
+        layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
+        self.check_size(mesh, fluid, layers)
+        if self.mark() == mark:
+            self.probe_layers(layers, geometry, mesh)
+        coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
+        # stand-ins keep formulas checkable while geometry or time have their own problems
+        constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
+        end = time.get("end", 1.0)
+        loads = parts["loads"] = self.loads(data.get("loads", {}), constants, end)
+        mark = self.mark()
+        initial = self.initial(data.get("initial", {}), constants)
+        parts["initial"] = self.part("initial", mark, lambda: initial)
+        mark = self.mark()
+        output = self.output(data.get("output", {}), constants, fluid, layers)
+        parts["output"] = self.part("output", mark, lambda: output)
+        mark = self.mark()
+        solver = self.section(data, "solver", SOLVER)
+        if len(self.problems) == mark and solver["factors"] == "single" and solver["linear"] not in SINGLE:
+            self.problems.append(Problem("solver.factors", "single",
+                                         f"'double' with linear = {solver['linear']!r} (single-precision factors "
+                                         f"need linear = one of {list(SINGLE)})"))
+        parts["solver"] = self.part("solver", mark, lambda: solver["linear"])
+        parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
+        parts["reuse"] = self.part("solver", mark,
+                                   lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"],
+                                                 solver["factors"], solver["factorization_cost"]))
+        parts["threads"] = self.part("solver", mark, lambda: solver["threads"])
+        case = Case(**parts)
+        self.add(self.objections(case))
+        if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
+            from multilayer.case.grid import sweep_table
+
+            self.add(sweep_table(data["sweep"])[1])
+        if self.problems:
+            raise CaseError(self.problems)
+
+        resolved = {
+            "title": title,
+            "geometry": geometry,
+            "mesh": mesh,
+            "time": time,
+            "fluid": None if fluid is None else {"model": fluid.model, **fluid.params},
+            "layers": [
+                {"model": layer.model, **layer.params, **({} if layer.thin else {"cells": layer.cells})}
+                for layer in layers
+            ],
+            "coupler": {"model": coupler.model, **coupler.params},
+            "loads": {
+                **{key: getattr(loads, key).to_dict() for key in LOAD_KEYS},
+                "wall_motion": None if loads.wall_motion is None else str(loads.wall_motion),
+            },
+            "initial": {
+                "displacement": {"r": str(initial.displacement_r), "z": str(initial.displacement_z)},
+                "velocity": {"r": str(initial.velocity_r), "z": str(initial.velocity_z)},
+            },
+            "output": {
+                "every": output.every,
+                "probes": [
+                    {"name": p.name, "quantity": p.quantity, "z": p.z, "r": p.r,
+                     "line": p.line if p.quantity in LINE_QUANTITIES else None}
+                    for p in output.probes
+                ],
+            },
+            "solver": solver,
+        }
+        canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
+        return attrs.evolve(case, resolved=resolved, digest=hashlib.sha256(canonical.encode()).hexdigest(),
+                            base_dir=str(self.base_dir.resolve()))
+
+    def objections(self, case: Case) -> list[Problem]:
+        """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""
+        if self.coupler_object is None:
+            return []
+        return coupler_objections(self.coupler_object, case)
+
+    def check_steps(self, time: Mapping[str, float]) -> None:
+        if "end" not in time or "dt" not in time:
+            return
+        steps = time["end"] / time["dt"]
+        if not steps <= resources.MAX_STEPS:  # also end/dt = inf
+            self.problems.append(
+                Problem("time.dt", time["dt"], f"{steps:.3g} steps to time.end = {time['end']:g}; expected at most "
+                        f"{resources.MAX_STEPS:.0e} steps", "is dt in seconds?")
+            )
+        elif round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
+            self.problems.append(
+                Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
+                        f"end/dt = {steps:.6g}")
+            )
+
+    def check_size(self, mesh: Mapping[str, Any], fluid: ModelSpec | None, layers: list[LayerSpec]) -> None:
+        """Refuse a case whose unknowns would not fit in the machine's available memory (:mod:`multilayer.case.resources`).
+
+        The problem is reported at the largest of the size keys (``mesh.nz``,
+        ``mesh.nr``, a band's ``cells``).
+        """
+        if not {"nz", "nr", "order"} <= mesh.keys():
+            return
+        bands = [layer for layer in layers if not layer.thin and layer.cells is not None]
+        need = resources.need(mesh["nz"], mesh["nr"], mesh["order"], fluid=fluid is not None, wall=bool(layers),
+                              band_cells=[layer.cells for layer in bands])
+        available = resources.available_memory()
+        if available is None or need.memory <= available:
+            return
+        sizes = [("mesh.nz", mesh["nz"])] + ([("mesh.nr", mesh["nr"])] if fluid is not None else [])
+        sizes += [(f"{layer.path}.cells", layer.cells) for layer in bands]
+        path, value = max(sizes, key=lambda item: item[1])
+        parts = ", ".join(f"{part} {n:.3g}" for part, n in (("fluid", need.fluid), ("wall", need.wall)) if n)
+        self.problems.append(Problem(
+            path, value,
+            f"the case needs about {resources.gigabytes(need.memory)} of memory ({need.dofs:.3g} unknowns: {parts}), "
+            f"this machine has {resources.gigabytes(available)} available",
+            "use a coarser mesh (see docs/case-files.md, Size limits)"))
+
+    def model(self, kind: str, spec: Any, path: str, extra: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any], bool] | None:
+        """(registered plugin, checked params, params ok) of a ``{model = ..., ...}`` table.
+
+        None when there is no such plugin.
+        """
+        if isinstance(spec, str):
+            spec = {"model": spec}
+        if not isinstance(spec, Mapping):
+            self.problems.append(Problem(path, spec, f"expected a table with a 'model' key naming a {kind} plugin"))
+            return None
+        name = spec.get("model", MISSING)
+        names = self.registry.names(kind)
+        available = "available: " + (", ".join(names) or "none installed")
+        if not isinstance(name, str):
+            expected = f"expected the name of a {kind} plugin"
+            self.problems.append(Problem(f"{path}.model", name, ("missing; " if name is MISSING else "") + expected, available))
+            return None
+        found = self.registry.find(kind, name)
+        if found is None:
+            hint = (did_you_mean(name, names) or available) + self.registry.failure_note()
+            self.problems.append(Problem(f"{path}.model", name, f"no such {kind} plugin", hint))
+            return None
+        params, problems = check_params(spec, found.record.params, path, extra=("model", *extra))
+        self.add(problems)
+        return found, params, not problems
+
+    def construct(self, found: Any, params: dict[str, Any], path: str) -> Any:
+        """Build the plugin once: only its factory can check constraints across parameters.
+
+        A ``ValueError`` is the factory's verdict on the parameters; any other
+        exception, or a class with unimplemented abstract methods, is a
+        mistake in the plugin, reported at ``path`` with the plugin's name.
+        """
+        problem = abstract_problem(found.record.factory)
+        if problem:
+            self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+            return None
+        try:
+            return found.record.factory(**params)
+        except ValueError as exc:
+            message = str(exc) if str(exc).startswith(found.name) else f"{found.name}: {exc}"
+            self.problems.append(Problem(path, MISSING, message))
+        except Exception as exc:  # the plugin's own code failed, not the case
+            self.problems.append(Problem(path, MISSING, f"{found.name}: the plugin's factory raised {raised(exc)}"))
+        return None
+
+    def fluid(self, spec: Any) -> ModelSpec | None:
+        if spec is None or spec == "none" or (isinstance(spec, Mapping) and spec.get("model") == "none"):
+            return None
+        checked = self.model("fluid", spec, "fluid")
+        if checked is None:
+            # an invalid fluid is still a fluid: do not add "no fluid" problems on top
+            return ModelSpec(path="fluid", model="?")
+        found, params, ok = checked
+        if ok:
+            self.construct(found, params, "fluid")
+        return ModelSpec(path="fluid", model=found.name, params=params)
+
+    def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float, Any]:
+        """The valid layers, the thickness H of their bands, and the stack as a part of the case.
+
+        The part is a tuple with a placeholder for each invalid layer, or a
+        placeholder for the whole stack when ``layers`` itself is wrong.
+        """
+        if specs is MISSING:
+            specs = []
+        if not isinstance(specs, list):
+            self.problems.append(Problem("layers", specs, "expected an array of tables [[layers]]"))
+            return [], 0.0, Unbuilt("layers")
+        if not specs and fluid is None:
+            self.problems.append(Problem("layers", MISSING, "missing; a case without a fluid needs at least one [[layers]]"))
+            return [], 0.0, Unbuilt("layers")
+        layers, H, part = [], 0.0, []
+        for i, spec in enumerate(specs):
+            path = f"layers[{i}]"
+            mark = self.mark()
+            found = self.layer(spec, path)
+            if found is not None:
+                layers.append(found[0])
+                H += found[1]
+            part.append(self.part(path, mark, lambda: layers[-1]))
+        return layers, H, tuple(part)
+
+    def layer(self, spec: Any, path: str) -> tuple[LayerSpec, float] | None:
+        """A valid layer and the thickness of its band (0 for a thin layer), or None."""
+        spec = {"model": spec} if isinstance(spec, str) else spec
+        checked = self.model("layer", spec, path, extra=("cells",))
+        if checked is None:
+            self.stack_known = False
+            return None
+        found, params, ok = checked
+        thin = found.record.thin
+        cells = None
+        if thin and "cells" in spec:
+            self.problems.append(Problem(f"{path}.cells", spec["cells"], "only a thick layer has radial cells",
+                                         f"{found.name!r} is a thin layer"))
+        elif not thin:
+            values, problems = check_params({k: spec[k] for k in ("cells",) if k in spec}, (CELLS,), path)
+            self.add(problems)
+            cells = values.get("cells")
+        if not ok:
+            self.stack_known = False
+            return None
+        layer = self.construct(found, params, path)
+        if isinstance(layer, Layer):  # (validation alone can use stand-ins that are not layers)
+            problem = type_problem(layer, thin)
+            if problem:
+                self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+            self.built_layers[path] = layer
+        H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
+        return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
+
+    def probe_layers(self, layers: list[LayerSpec], geometry: Mapping[str, float], mesh: Mapping[str, Any]) -> None:
+        """Have every layer assemble on a small wall (:mod:`multilayer.wall.probe`); problems at its path.
+
+        Only when every layer was built as a layer of its kind and nothing
+        else is wrong with the stack: a wall cannot be placed otherwise.
+        """
+        if not layers or len(self.built_layers) != len(layers):
+            return
+        objects = [self.built_layers[layer.path] for layer in layers]
+        found = wall_probe.probe(objects, [layer.model for layer in layers], geometry.get("length", 1.0),
+                                 geometry.get("radius", 1.0), mesh.get("order", 2))
+        for index, problems in found.items():
+            layer = layers[index]
+            self.problems.append(Problem(layer.path, MISSING, f"{layer.model}: " + "; ".join(problems)))
+
+    def coupler(self, spec: Any, fluid: ModelSpec | None) -> ModelSpec:
+        default = "structure-only" if fluid is None else "kinematic-splitting"
+        if spec is MISSING:
+            spec = {"model": default}
+        elif isinstance(spec, Mapping) and "model" not in spec:
+            spec = {"model": default, **spec}
+        checked = self.model("coupler", spec, "coupler")
+        if checked is None:
+            return ModelSpec(path="coupler", model="?")
+        found, params, ok = checked
+        if ok:
+            self.coupler_object = self.construct(found, params, "coupler")
+        return ModelSpec(path="coupler", model=found.name, params=params)
+
+    def formula(self, expr: Any, path: str, constants: Mapping[str, float], domain: Domain) -> Formula:
+        """The formula at ``path``, checked, then judged on ``domain`` (the ranges of its variables)."""
+        variables = tuple(domain.ranges)
+        try:
+            formula = Formula.parse(expr, constants, variables)
+        except FormulaError as exc:
+            self.problems.append(Problem(path, expr, f"invalid formula in {', '.join(variables)}: {exc}"))
+            return Formula.zero()
+        self.judge(formula, path, domain)
+        return formula
+
+    def judge(self, formula: Formula, path: str, domain: Domain) -> None:
+        """A problem at ``path`` when ``formula`` is not a finite real number somewhere on ``domain``."""
+        reason = defect(formula, domain)
+        if reason is not None:
+            self.problems.append(Problem(path, str(formula), f"{reason}; expected a finite real value for every {domain}"))
+
+    def table(self, data: Any, path: str, keys: Iterable[str]) -> Mapping[str, Any]:
+        """A table whose keys must be among ``keys``; {} (with a problem) if it is not a table."""
+        if not isinstance(data, Mapping):
+            self.problems.append(Problem(path, data, "expected a table"))
+            return {}
+        keys = list(keys)
+        self.add(
+            Problem(f"{path}.{k}", v, "unknown key", did_you_mean(k, keys)) for k, v in data.items() if k not in keys
+        )
+        return data
+
+    def loads(self, data: Any, constants: Mapping[str, float], end: float) -> Loads:
+        data = self.table(data, "loads", (*LOAD_KEYS, "wall_motion"))
+        pressures = {}
+        for key in LOAD_KEYS:
+            spec, mark = data.get(key, 0.0), self.mark()
+            try:
+                load = load_from_spec(spec, f"loads.{key}", self.base_dir, constants)
+            except CaseError as exc:
+                self.add(exc.problems)
+                load = None
+            if isinstance(load, FormulaPressure):
+                where = f"loads.{key}" if isinstance(spec, str) else f"loads.{key}.expr"
+                self.judge(load.formula, where, Domain({"t": (0.0, end)}))
+            pressures[key] = self.part(f"loads.{key}", mark, lambda: load)
+        motion, mark = data.get("wall_motion"), self.mark()
+        wall_motion = None if motion is None else self.formula(
+            motion, "loads.wall_motion", constants, Domain({"t": (0.0, end), "z": (0.0, constants["L"])}))
+        return Loads(**pressures, wall_motion=self.part("loads.wall_motion", mark, lambda: wall_motion))
+
+    def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
+        data = self.table(data, "initial", ("displacement", "velocity"))
+        fields = {}
+        for name in ("displacement", "velocity"):
+            part = self.table(data.get(name, {}), f"initial.{name}", ("r", "z"))
+            # evaluated on the wall: z along the channel, r across every band (the lumen line alone without one)
+            wall = Domain({"z": (0.0, constants["L"]), "r": (constants["R"], constants["R"] + constants["H"])})
+            for component in ("r", "z"):
+                fields[f"{name}_{component}"] = self.formula(
+                    part.get(component, "0"), f"initial.{name}.{component}", constants, wall
+                )
+        return Initial(**fields)
+
+    def output(self, data: Any, constants: Mapping[str, float], fluid: ModelSpec | None, layers: list[LayerSpec]) -> Output:
+        values, problems = check_params(data, OUTPUT, "output", extra=("probes",))
+        self.add(problems)
+        specs = data.get("probes", []) if isinstance(data, Mapping) else []
+        if not isinstance(specs, list):
+            self.problems.append(Problem("output.probes", specs, "expected an array of tables"))
+            specs = []
+        lines = sum(not layer.thin for layer in layers)
+        probes, names = [], set()
+        for i, spec in enumerate(specs):
+            probe = self.probe(spec, f"output.probes[{i}]", constants, fluid, lines, bool(layers))
+            if probe is None:
+                continue
+            if probe.name in names:
+                self.problems.append(Problem(f"output.probes[{i}].name", probe.name, "a probe of that name exists already"))
+            names.add(probe.name)
+            probes.append(probe)
+        return Output(every=values.get("every", 0), probes=tuple(probes))
+
+    def probe(self, spec: Any, path: str, constants: Mapping[str, float], fluid: ModelSpec | None, lines: int,
+              has_wall: bool) -> Probe | None:
+        values, problems = check_params(spec, PROBE, path)
+        if problems:
+            self.add(problems)
+            return None
+        q, z, r, line = values["quantity"], values["z"], values["r"], values["line"]
+        L, R, H = constants["L"], constants["R"], constants["H"]
+        found = []
+        if fluid is None and q in FLUID_QUANTITIES:
+            found.append(Problem(f"{path}.quantity", q, "a fluid quantity, but the case has no fluid"))
+        if self.stack_known and q not in FLUID_QUANTITIES:
+            if not has_wall:
+                found.append(Problem(f"{path}.quantity", q, "a wall quantity, but the case has no [[layers]]"))
+            elif q in ("d_z", "d_r") and lines == 0:
+                found.append(Problem(f"{path}.quantity", q, "a displacement inside a thick band, but the stack has "
+                                     "no thick layer", "measure a thin layer with quantity = \"eta\""))
+        if not 0.0 <= z <= L:
+            found.append(Problem(f"{path}.z", z, f"expected a position in [0, L = {L:g}] (cm)"))
+        if q in POINT_QUANTITIES:
+            lo, hi = (0.0, R) if q in FLUID_QUANTITIES else (R, R + H)
+            if r is None:
+                found.append(Problem(f"{path}.r", MISSING, f"missing; {q} is measured at a point (z, r), r in [{lo:g}, {hi:g}] (cm)"))
+            elif self.stack_known and not lo - 1e-12 * hi <= r <= hi * (1 + 1e-12):
+                found.append(Problem(f"{path}.r", r, f"expected a radius in [{lo:g}, {hi:g}] (cm) for {q}"))
+        elif r is not None:
+            found.append(Problem(f"{path}.r", r, f"{q} takes no r", "r applies to " + ", ".join(POINT_QUANTITIES)))
+        if q in LINE_QUANTITIES:
+            line = 0 if line is None else line
+            if self.stack_known and line > lines:
+                found.append(Problem(f"{path}.line", line, f"expected an interface line 0..{lines} (0 = lumen)"))
+        elif line is not None:
+            found.append(Problem(f"{path}.line", line, f"{q} takes no line", "line applies to eta and v"))
+        self.add(found)
+        if found:
+            return None
+        name = values["name"] or (f"{q}_z{z:g}" + (f"_r{r:g}" if r is not None else "") + (f"_line{line}" if line else ""))
+        return Probe(name=name, quantity=q, z=z, r=r, line=line or 0)

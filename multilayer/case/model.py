@@ -1,0 +1,123 @@
+"""The case model: a validated scene, as frozen values.
+
+A case file (TOML) is parsed and validated by :mod:`multilayer.case.casefile`
+into a :class:`Case`; nothing downstream reads raw TOML.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import attrs
+
+from multilayer.functions.formula import Formula
+from multilayer.functions.loads import PressureLoad
+from multilayer.numerics.linsolve import Reuse
+
+
+@attrs.frozen
+class Geometry:
+    length: float  #: L (cm), channel length
+    radius: float  #: R (cm), reference radius of the lumen
+
+
+@attrs.frozen
+class MeshSpec:
+    nz: int  #: cells along z, shared by every field
+    nr: int  #: fluid cells across (0, R)
+    order: int  #: 1 (P1 / MINI) or 2 (P2 / Taylor–Hood)
+    grading: float = 1.0  #: fluid grading toward the wall (1 = uniform)
+
+
+@attrs.frozen
+class TimeSpec:
+    end: float  #: T (s)
+    dt: float  #: Δt (s)
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.end / self.dt))
+
+
+@attrs.frozen
+class ModelSpec:
+    """A plugin chosen by a case: where it was declared, its name, its parameters."""
+
+    path: str  #: key path in the case file, e.g. ``layers[1]``
+    model: str
+    params: Mapping[str, Any] = attrs.field(factory=dict, eq=False)
+
+
+@attrs.frozen
+class LayerSpec(ModelSpec):
+    thin: bool = True
+    cells: int | None = None  #: radial cells of a thick band
+
+
+@attrs.frozen
+class Loads:
+    inlet: PressureLoad
+    outlet: PressureLoad
+    external: PressureLoad  #: P_e on the outer surface of the wall
+    interface: PressureLoad  #: pressure on the lumen line when there is no fluid
+    wall_motion: Formula | None = None  #: prescribed η(t, z) for a fluid with a moving rigid wall
+
+
+@attrs.frozen
+class Initial:
+    """Initial wall displacement and velocity, as formulas in (z, r)."""
+
+    displacement_z: Formula
+    displacement_r: Formula
+    velocity_z: Formula
+    velocity_r: Formula
+
+
+@attrs.frozen
+class Probe:
+    name: str
+    quantity: str
+    z: float
+    r: float | None = None
+    line: int = 0  #: interface line (0 = lumen) for line quantities
+
+
+@attrs.frozen
+class Output:
+    every: int = 0  #: field snapshot cadence in steps (0: none)
+    probes: tuple[Probe, ...] = ()
+
+
+@attrs.frozen
+class Limits:
+    """When a run that has not crashed is stopped as failed anyway (``[solver]``)."""
+
+    max_displacement: float = 0.5  #: |η| on the lumen, as a fraction of R
+    energy_margin: float = 0.01  #: E − (E⁰ + work), as a fraction of max(|E⁰| + |work|, E)
+
+
+@attrs.frozen
+class Case:
+    title: str
+    geometry: Geometry
+    mesh: MeshSpec
+    time: TimeSpec
+    fluid: ModelSpec | None
+    layers: tuple[LayerSpec, ...]
+    coupler: ModelSpec
+    loads: Loads
+    initial: Initial
+    output: Output
+    solver: str = "superlu"
+    #: when a changing matrix is refactorized (``[solver] reuse``)
+    reuse: Reuse = Reuse()
+    #: BLAS threads during a run (0: the libraries' defaults; ``[solver] threads``)
+    threads: int = 1
+    limits: Limits = Limits()
+    #: the resolved case (defaults filled) as plain JSON-able data
+    resolved: Mapping[str, Any] = attrs.field(factory=dict, eq=False)
+    #: sha256 of the canonical JSON of ``resolved``
+    digest: str = ""
+    #: the folder relative file names of the case (table loads) are read from
+    base_dir: str = attrs.field(default=".", eq=False)

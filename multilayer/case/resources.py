@@ -1,0 +1,131 @@
+"""What a case needs — unknowns, memory, steps — against what the machine has.
+
+A case that cannot run is refused before any work starts.  The unknowns
+are counted exactly from the meshes (:mod:`multilayer.geometry.mesh`: ``nz`` cells
+along z, each rectangle cut into two triangles):
+
+* fluid, Taylor–Hood P2/P1 (order 2): ``2 (2nz+1)(2nr+1) + (nz+1)(nr+1)``;
+  MINI P1b/P1 (order 1): ``2 ((nz+1)(nr+1) + 2 nz nr) + (nz+1)(nr+1)``;
+* wall with thick bands of C radial cells in all: vector Lagrange,
+  ``2 (p nz + 1)(p C + 1)`` for order p; thin layers only: the lumen
+  line, ``p nz + 1``.
+
+The memory of N unknowns is estimated as
+
+    :data:`BASELINE` + N · :data:`BYTES_PER_DOF` · max(1, (N / :data:`DOFS_MEASURED`)^:data:`GROWTH`)
+
+from the peak resident memory of coupled runs (the matrices, their sparse
+LU factorizations, the assembly's work arrays) measured with
+``python scripts/memory_per_dof.py`` at four mesh sizes, and of the 10⁶-unknown
+run (``docs/case-files.md``, "Size limits"): :data:`BYTES_PER_DOF` is the
+most any run up to :data:`DOFS_MEASURED` unknowns took per unknown, rounded
+up (it is flat there: 6–11 kB from 4k to 297k unknowns), and :data:`GROWTH`
+the exponent of its growth from 297k to 1.15M unknowns (0.024: the factors'
+fill per row grows like log N on the nested-dissection ordering of
+:mod:`multilayer.numerics.ordering`), rounded up.  Every measured run lies below the estimate.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import attrs
+
+#: Peak memory of a run per unknown (bytes) at :data:`DOFS_MEASURED` unknowns, measured and rounded up.
+BYTES_PER_DOF = 11_000
+#: Up to this many unknowns the memory per unknown was measured flat (``pulse-koiter-thick`` at 480 x 64,
+#: order 2: 296 501 unknowns, rounded up); beyond it, it grows like N^:data:`GROWTH` (measured to 1.15M).
+DOFS_MEASURED = 300_000
+#: Exponent of the growth of the memory per unknown beyond :data:`DOFS_MEASURED`, measured and rounded up.
+GROWTH = 0.05
+#: Resident memory of the process before a run (Python, numpy, scipy, scikit-fem), measured and rounded up.
+BASELINE = 100e6
+#: More steps than this is a mistake (a time step in the wrong unit), not a run.
+MAX_STEPS = 10**8
+
+GB = 1e9
+
+
+def fluid_dofs(nz: int, nr: int, order: int) -> int:
+    """Unknowns of the channel fluid: velocity (2 components) and P1 pressure.
+
+    >>> fluid_dofs(6, 2, 2), fluid_dofs(6, 2, 1)
+    (151, 111)
+    """
+    vertices = (nz + 1) * (nr + 1)
+    if order == 2:
+        return 2 * (2 * nz + 1) * (2 * nr + 1) + vertices
+    return 2 * (vertices + 2 * nz * nr) + vertices  # P1 and one bubble per triangle
+
+
+def wall_dofs(nz: int, order: int, band_cells: Sequence[int] = ()) -> int:
+    """Unknowns of the wall: the lumen line alone, or (d_z, d_r) on every band.
+
+    ``band_cells`` are the radial cells of each thick band (none: thin layers only).
+
+    >>> wall_dofs(6, 2), wall_dofs(6, 2, [4, 2])
+    (13, 338)
+    """
+    cells = sum(band_cells)
+    if cells == 0:
+        return order * nz + 1
+    return 2 * (order * nz + 1) * (order * cells + 1)
+
+
+@attrs.frozen
+class Need:
+    """What a case needs: its unknowns by part and the memory they take."""
+
+    fluid: int = 0
+    wall: int = 0
+
+    @property
+    def dofs(self) -> int:
+        return self.fluid + self.wall
+
+    @property
+    def memory(self) -> float:
+        """Bytes, estimated (see the module docstring)."""
+        n = float(self.dofs)
+        return BASELINE + n * BYTES_PER_DOF * max(1.0, n / DOFS_MEASURED) ** GROWTH
+
+
+def need(nz: int, nr: int, order: int, fluid: bool, wall: bool, band_cells: Sequence[int] = ()) -> Need:
+    """The unknowns and memory of a scene.
+
+    >>> n = need(60, 8, 2, fluid=True, wall=True, band_cells=[4])
+    >>> n.fluid, n.wall, gigabytes(n.memory)
+    (4663, 2178, '0.18 GB')
+    >>> gigabytes(need(10**9, 8, 2, fluid=True, wall=True, band_cells=[4]).memory)
+    '2.4e+06 GB'
+    """
+    return Need(fluid_dofs(nz, nr, order) if fluid else 0, wall_dofs(nz, order, band_cells) if wall else 0)
+
+
+def available_memory(meminfo: Path | str = "/proc/meminfo") -> float | None:
+    """Bytes of memory available to a new process (Linux ``MemAvailable``), or None when unknown.
+
+    Falls back on the free physical pages where ``/proc/meminfo`` is missing.
+    """
+    try:
+        for line in Path(meminfo).read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return float(line.split()[1]) * 1024.0  # kB
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES")) * float(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def gigabytes(n: float) -> str:
+    """A size for a message: ``23 GB``, ``0.27 GB``, ``9.1e+05 GB``.
+
+    >>> gigabytes(23.4e9), gigabytes(2.7e8), gigabytes(9.1e14)
+    ('23 GB', '0.27 GB', '9.1e+05 GB')
+    """
+    g = n / GB
+    return f"{g:.0f} GB" if 10 <= g < 1e4 else f"{g:.2g} GB"

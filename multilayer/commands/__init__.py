@@ -1,0 +1,1 @@
+"""The ``multilayer`` command line: one module per command, exit codes and shared options in one place."""

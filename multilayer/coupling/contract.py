@@ -1,0 +1,89 @@
+"""The coupler contract: a time-stepping scheme as a pure stepper over a frozen setup."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Iterator, Mapping
+from typing import TYPE_CHECKING, ClassVar
+
+import attrs
+
+from multilayer.functions.loads import is_zero
+
+if TYPE_CHECKING:  # pragma: no cover
+
+    from multilayer.case.model import Case
+    from multilayer.numerics.timescheme import TimeScheme
+    from multilayer.scene.setup import Setup
+    from multilayer.scene.state import State
+
+
+@attrs.frozen
+class StepReport:
+    """The energy terms of one step (theory §7), by column name, as a coupler reports them.
+
+    ``stored`` is the energy at tⁿ⁺¹ as the scheme's identity measures it
+    (kinetic and elastic, per part), ``work`` what the loads put in,
+    ``dissipation`` what viscosity, the scheme and the explicit geometry
+    take out (a geometric remainder may be negative).  The runner closes
+    the ledger from them: Eⁿ⁺¹ − Eⁿ − work + dissipation = 0.
+    ``diagnostics`` are extra columns (e.g. each sub-step's own residual).
+    """
+
+    stored: Mapping[str, float] = attrs.field(factory=dict)
+    work: Mapping[str, float] = attrs.field(factory=dict)
+    dissipation: Mapping[str, float] = attrs.field(factory=dict)
+    diagnostics: Mapping[str, float] = attrs.field(factory=dict)
+
+
+class SchemeFailure(Exception):
+    """A coupler cannot go on (e.g. sub-iterations that do not converge); the message says where and when."""
+
+
+class Coupler(ABC):
+    """A time-stepping scheme: a pure stepper over a frozen setup.
+
+    ``evolve(setup, state0)`` yields ``(state, report)`` after every step:
+    the new :class:`~multilayer.scene.state.State` (a value; nothing is mutated)
+    and the step's :class:`StepReport`.  The runner writes rows, probes
+    and snapshots from them and closes the energy ledger.
+    """
+
+    #: the loads (keys of ``[loads]``) this coupler applies; any other must be left at 0
+    loads: ClassVar[tuple[str, ...]] = ()
+    #: the time schemes (:data:`multilayer.numerics.timescheme.SCHEMES`) it offers; its ``scheme`` parameter
+    schemes: ClassVar[tuple[str, ...]] = ("backward-euler",)
+
+    def __init__(self, scheme: str = "backward-euler"):
+        from multilayer.numerics.timescheme import SCHEMES
+
+        if scheme not in self.schemes:
+            raise ValueError(f"scheme {scheme!r} is not offered; choose one of {', '.join(self.schemes)}")
+        self.scheme: TimeScheme = SCHEMES[scheme]
+
+    def check_case(self, case: Case) -> list[str]:
+        """Reasons this coupler cannot run ``case`` (empty when it can).
+
+        Called by the case validator, so ``multilayer validate`` reports them.
+        The default rejects a non-zero load that the coupler would ignore.
+        """
+        name = getattr(self, "name", type(self).__name__)
+        return [f"loads.{key} is set, but {name} does not apply it (it applies: {', '.join(self.loads) or 'none'})"
+                for key in ("inlet", "outlet", "external", "interface")
+                if key not in self.loads and not is_zero(getattr(case.loads, key))]
+
+    def fluid_wall(self, case: Case) -> str:
+        """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""
+        return "coupled"
+
+    def initial_state(self, setup: Setup) -> State:
+        """The state at t = 0 (the case's initial wall, the fluid at rest)."""
+        return setup.initial_state()
+
+    @abstractmethod
+    def energy(self, setup: Setup, state: State) -> dict[str, float]:
+        """The stored energy of ``state`` by part, as this scheme's identity measures it."""
+
+    @abstractmethod
+    def evolve(self, setup: Setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        """Advance from ``state`` step by step, yielding the new state and the step's report."""

@@ -1,0 +1,92 @@
+"""Pieces every coupler of a fluid and a wall shares: the interface mass, loads, ledger groups.
+
+Couplers are plugins; what more than one of them needs lives here once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.fluid.contract import Domain
+from multilayer.numerics.timescheme import TimeScheme
+from multilayer.scene.setup import Setup
+from multilayer.wall.stack import LUMEN
+
+
+def coupled_case_problems(name: str, case) -> list[str]:
+    """What a coupler of a fluid and a wall whose first layer is thin cannot run."""
+    problems = []
+    if case.fluid is None:
+        problems.append(f"{name} couples a fluid to the wall: declare [fluid], or choose the coupler 'structure-only'")
+    if not case.layers:
+        problems.append(f"{name} needs a wall: declare [[layers]], or choose 'fluid-only'")
+    elif not case.layers[0].thin:
+        problems.append(f"{name} needs a thin layer at the fluid interface, but layers[0] is "
+                        f"'{case.layers[0].model}' (thick): put a thin layer (e.g. 'koiter-shell' or "
+                        f"'wave-membrane') first in [[layers]]")
+    if case.loads.wall_motion is not None:
+        problems.append(f"loads.wall_motion prescribes the wall, which {name} computes: "
+                        "remove it, or choose the coupler 'fluid-only' without [[layers]]")
+    return problems
+
+
+def lumen_layers(setup: Setup) -> list[int]:
+    """Indices of the thin layers on the fluid interface line (r = R)."""
+    return [p.index for p in setup.wall.placements if p.line == LUMEN]
+
+
+def lumen_mass(setup: Setup, index: int | None = None) -> sp.csr_matrix:
+    """ρ₁h ∫ v ψ of the thin layers on the fluid interface (or of layer ``index``), in the line's numbering."""
+    P = setup.wall.prolongations[LUMEN]
+    masses = [setup.stack.matrices[i].mass for i in (lumen_layers(setup) if index is None else [index])]
+    return (P.T @ sum(masses[1:], masses[0]) @ P).tocsr()
+
+
+def window_loads(setup: Setup, scheme: TimeScheme, t0: float, t1: float) -> dict[str, float]:
+    """Every pressure load of the case averaged over the scheme's window of the step [t0, t1]."""
+    a, b = scheme.load_window(t0, t1)
+    loads = setup.case.loads
+    return {key: getattr(loads, key).average(a, b) for key in ("inlet", "outlet", "external", "interface")}
+
+
+def external_force(setup: Setup, pressure: float) -> np.ndarray:
+    """The load vector of the external pressure P_e on the outer surface (wall numbering)."""
+    return -pressure * setup.wall.line_load(setup.wall.outer_line)
+
+
+def fluid_groups(terms: Mapping[str, float], numerical: bool = True) -> tuple[dict, dict, dict]:
+    """The fluid's identity terms as ledger groups (stored, work, dissipation).
+
+    ``numerical=False`` leaves the fluid's numerical dissipation out, for a
+    coupler that reports it together with another's.
+    """
+    stored = {"kinetic.fluid": terms["kinetic.fluid"]}
+    work = {k: terms[k] for k in ("work.inlet", "work.outlet", "work.wall") if k in terms}
+    keys = ("dissipation.viscous.fluid", "dissipation.geometric.fluid") + (
+        ("dissipation.numerical.fluid",) if numerical else ())
+    return stored, work, {k: terms[k] for k in keys}
+
+
+def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Domain:
+    """The explicit domain of a step whose wall is not known yet (monolithic, Dirichlet–Neumann).
+
+    The wall velocity is extrapolated to where the scheme evaluates its
+    operator, the displacement integrated from it (Σα_k η^{n+1−k} = Δt c),
+    and the domain is the scheme's geometry of those (theory §6).
+    """
+    etas = [x.eta for x in history]
+    velocity = scheme.extrapolate([x.v for x in history])
+    return Domain(scheme.geometry([scheme.displacement(velocity, etas, dt), *etas]), velocity)
+
+
+def quadratic(M: sp.spmatrix):
+    """x ↦ ½ xᵀ M x."""
+    return lambda x: 0.5 * float(x @ (M @ x))
+
+
+def relative(residual: float, scale: float) -> float:
+    """|residual| / scale, 0 for a zero scale."""
+    return abs(residual) / scale if scale > 0 else 0.0

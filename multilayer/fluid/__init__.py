@@ -1,0 +1,1 @@
+"""The fluid contract: what a coupler asks of a fluid."""

@@ -1,0 +1,184 @@
+"""The fluid contract: what a coupler asks of a fluid, and the domain and interface terms it passes."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.geometry.spaces import LineSpace
+
+if TYPE_CHECKING:  # pragma: no cover
+
+    from multilayer.numerics.linsolve import SolverStats
+    from multilayer.numerics.timescheme import TimeScheme
+
+
+@attrs.frozen(eq=False)
+class Domain:
+    """The fluid domain of one step, explicit in time: line vectors on the interface line.
+
+    ``eta`` is the wall displacement of the geometry the step is assembled
+    on (J_m, ∇^η); ``velocity`` the wall velocity c that moves the domain
+    during the step (∂_t J = c/R, ALE velocity w = c r̂/R).
+    """
+
+    eta: np.ndarray
+    velocity: np.ndarray
+
+    @classmethod
+    def still(cls, n: int) -> Domain:
+        """The reference channel at rest (n line DOFs)."""
+        return cls(np.zeros(n), np.zeros(n))
+
+
+@attrs.frozen(eq=False)
+class Interface:
+    """Terms a coupler adds on the fluid's wall u_r rows, in line numbering: R v̄ − r.
+
+    In the kinematically coupled scheme R = (α₀/β₀) M/Δt with M = ρ₁h∫vψ the
+    thin layer's mass (the Robin term) and r the old thin-layer inertia.
+    """
+
+    matrix: sp.spmatrix
+    rhs: np.ndarray
+
+
+class Fluid(ABC):
+    """An incompressible fluid in the channel under the wall.
+
+    A fluid is discretized once (:meth:`setup`) for a wall mode, then
+    advanced step by step by a coupler through :meth:`system` (the linear
+    system of one step on a given domain, for a time scheme), :meth:`solve`
+    and :meth:`identity` (the step's energy terms); :meth:`step` does the
+    three.  A monolithic coupler takes the system's matrix and right-hand
+    side (:meth:`matrix`), adds the wall to them through
+    :attr:`interface_dofs`, solves, and hands the solution back with
+    :meth:`advance`.  Line vectors (η, v) are in the numbering of
+    :attr:`line`, the interface line r = R shared with the wall.
+    """
+
+    density: float  #: ρ_f (g/cm³)
+    viscosity: float  #: μ (poise)
+
+    @abstractmethod
+    def setup(self, length: float, radius: float, nz: int, nr: int, order: int = 2, grading: float = 1.0,
+              wall: str = "coupled", solver: str = "superlu", line: LineSpace | None = None) -> Any:
+        """Discretize for a wall mode ``coupled``, ``rigid`` or ``prescribed``.
+
+        A fluid whose ``setup`` also takes a keyword ``reuse`` (a
+        :class:`multilayer.numerics.linsolve.Reuse`) is given the case's
+        ``[solver] reuse`` policy; one without it is set up as before.
+        """
+
+    @property
+    @abstractmethod
+    def line(self) -> LineSpace:
+        """The interface line whose DOFs are the fluid's wall u_r DOFs."""
+
+    @property
+    @abstractmethod
+    def ndofs(self) -> int:
+        """Unknowns of the fluid's system."""
+
+    @property
+    @abstractmethod
+    def interface_dofs(self) -> np.ndarray:
+        """The unknown of the fluid's system that is the wall's u_r at each line DOF."""
+
+    @property
+    @abstractmethod
+    def stats(self) -> SolverStats:
+        """Factorizations and solves of the fluid's own systems."""
+
+    @property
+    @abstractmethod
+    def timings(self) -> dict[str, float]:
+        """Seconds spent in ``assembly`` and ``ledger`` so far."""
+
+    @abstractmethod
+    def initial_state(self) -> Any:
+        """The fluid at rest."""
+
+    @abstractmethod
+    def system(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
+               p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> Any:
+        """The linear system of one step on ``domain`` (history: the states at tⁿ, t^{n−1}, ...)."""
+
+    @abstractmethod
+    def matrix(self, system: Any) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, np.ndarray]:
+        """(A, b, fixed DOFs, their values) of ``system``: A x̄ = b on the free DOFs."""
+
+    @abstractmethod
+    def solve(self, system: Any) -> Any:
+        """Solve ``system``; the result has ``state`` (the new state) and ``mean`` (the test-level x̄)."""
+
+    @abstractmethod
+    def prescribe(self, system: Any, wall_velocity: np.ndarray) -> Any:
+        """``system`` with the wall's u_r prescribed to ``wall_velocity`` (a line vector; prescribed mode).
+
+        Only the Dirichlet data change: a Dirichlet–Neumann coupler iterates on
+        it without refactorizing.
+        """
+
+    @abstractmethod
+    def advance(self, system: Any, mean: np.ndarray) -> Any:
+        """The solution of ``system`` from its test-level unknowns x̄ solved elsewhere."""
+
+    @abstractmethod
+    def identity(self, system: Any, solution: Any, eta_old: np.ndarray, eta_new: np.ndarray) -> dict[str, float]:
+        """The step's energy terms (see :meth:`multilayer_plugins.channel.step.FluidStep.identity`)."""
+
+    @abstractmethod
+    def reaction(self, system: Any, mean: np.ndarray) -> np.ndarray:
+        """The fluid's residual on the wall's u_r rows as a line vector: minus its force on the wall."""
+
+    def step(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float, p_in: float = 0.0,
+             p_out: float = 0.0, interface: Interface | None = None, eta_old: np.ndarray | None = None,
+             eta_new: np.ndarray | None = None) -> tuple[Any, dict[str, float]]:
+        """One step: system, solve and energy terms; returns (solution, terms).
+
+        ``eta_old``, ``eta_new`` are η at tⁿ and tⁿ⁺¹, on which the identity
+        measures the kinetic energy (default: the domain's η, a still domain).
+        """
+        system = self.system(history, domain, scheme, dt, p_in, p_out, interface)
+        solution = self.solve(system)
+        eta_old = domain.eta if eta_old is None else eta_old
+        eta_new = domain.eta if eta_new is None else eta_new
+        return solution, self.identity(system, solution, eta_old, eta_new)
+
+    @abstractmethod
+    def wall_velocity(self, state: Any) -> np.ndarray:
+        """The wall's u_r of ``state`` as a line vector."""
+
+    @abstractmethod
+    def kinetic_energy(self, state: Any, eta: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+
+    @abstractmethod
+    def flow_rate(self, state: Any, eta: np.ndarray | None, z: float) -> float:
+        """Volume flux through the section at z (cm²/s)."""
+
+    @abstractmethod
+    def probe(self, quantity: str, z: float, rhat: float | None = None) -> Any:
+        """A function (state, η) → float for a probe, built once per run.
+
+        ``u_z``, ``u_r``, ``p`` at the reference point (z, r̂) of the ALE map
+        (it moves with the channel), or ``flow_rate`` through the section z.
+        """
+
+    @abstractmethod
+    def velocity(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array."""
+
+    @abstractmethod
+    def pressure(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """Pressure at physical points."""
+
+    @abstractmethod
+    def snapshot(self, state: Any, eta: np.ndarray | None = None) -> tuple:
+        """(points (n, 2) in the deformed channel, triangles, point data)."""

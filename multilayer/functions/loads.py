@@ -1,0 +1,390 @@
+"""Pressure loads P(t): inlet, outlet, external and interface pressures.
+
+The scheme never samples a pressure at a point in time: it uses the time
+average Pⁿ = (1/Δt) ∫ P dt over [tⁿ, tⁿ⁺¹] (theory §6).  Every load therefore
+knows its exact integral where a closed form exists (constant, cosine pulse,
+sine, piecewise-linear table) and a 5-point Gauss–Legendre rule otherwise
+(formula).
+
+A case file writes a load as a number (constant), a string (formula in
+``t``) or a table ``{kind = "...", ...}``; :func:`load_from_spec` turns any
+of them into a :class:`PressureLoad` or raises a
+:class:`~multilayer.plugin.problems.CaseError` naming the key path.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+import attrs
+import numpy as np
+
+from multilayer.functions.formula import Formula, FormulaError
+from multilayer.plugin.problems import (
+    MISSING,
+    CaseError,
+    Problem,
+    check_params,
+    did_you_mean,
+)
+from multilayer.plugin.records import Param
+
+
+def is_zero(load: PressureLoad | None) -> bool:
+    """True for a load that is absent or the constant 0 (the default of every load).
+
+    >>> is_zero(ConstantPressure(0.0)), is_zero(ConstantPressure(1.0))
+    (True, False)
+    """
+    return load is None or (isinstance(load, ConstantPressure) and load.value_ == 0.0)
+
+
+class PressureLoad(ABC):
+    """A pressure history P(t) in dyn/cm²."""
+
+    kind: ClassVar[str]
+
+    @abstractmethod
+    def value(self, t: Any) -> Any:
+        """P(t); vectorised over ``t``."""
+
+    @abstractmethod
+    def integral(self, t0: float, t1: float) -> float:
+        """∫ P dt over [t0, t1]."""
+
+    def average(self, t0: float, t1: float) -> float:
+        """(1/(t1 − t0)) ∫ P dt over [t0, t1]: the pressure a step [t0, t1] sees."""
+        if t1 == t0:
+            return float(self.value(t0))
+        return float(self.integral(t0, t1)) / (t1 - t0)
+
+    @abstractmethod
+    def to_dict(self) -> dict[str, Any]:
+        """The load as case-file data (JSON-able, defaults filled)."""
+
+
+@attrs.frozen
+class ConstantPressure(PressureLoad):
+    """P(t) = value.
+
+    >>> ConstantPressure(3.0).average(0.0, 0.1)
+    3.0
+    """
+
+    kind: ClassVar[str] = "constant"
+    value_: float = attrs.field(converter=float, alias="value")
+
+    def value(self, t: Any) -> Any:
+        return self.value_ + 0.0 * np.asarray(t, dtype=float)
+
+    def integral(self, t0: float, t1: float) -> float:
+        return self.value_ * (t1 - t0)
+
+    def average(self, t0: float, t1: float) -> float:
+        return self.value_
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "value": self.value_}
+
+
+@attrs.frozen
+class CosinePulse(PressureLoad):
+    """P = amplitude/2 · (1 − cos(2πt/duration)) for 0 ≤ t ≤ duration, 0 otherwise.
+
+    The inlet pulse of the reference scene (theory §9): amplitude = P_max.
+
+    >>> p = CosinePulse(amplitude=2.0, duration=1.0)
+    >>> float(p.value(0.5)), p.average(0.0, 1.0), p.average(1.0, 2.0)
+    (2.0, 1.0, 0.0)
+    """
+
+    kind: ClassVar[str] = "cosine-pulse"
+    amplitude: float = attrs.field(converter=float)  #: P_max (dyn/cm²)
+    duration: float = attrs.field(converter=float)  #: t_max (s)
+
+    def value(self, t: Any) -> Any:
+        t = np.asarray(t, dtype=float)
+        inside = (t >= 0.0) & (t <= self.duration)
+        return np.where(inside, 0.5 * self.amplitude * (1.0 - np.cos(2.0 * np.pi * t / self.duration)), 0.0)
+
+    def _antiderivative(self, t: float) -> float:
+        s = min(max(t, 0.0), self.duration)
+        return 0.5 * self.amplitude * (s - self.duration / (2.0 * math.pi) * math.sin(2.0 * math.pi * s / self.duration))
+
+    def integral(self, t0: float, t1: float) -> float:
+        return self._antiderivative(t1) - self._antiderivative(t0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "amplitude": self.amplitude, "duration": self.duration}
+
+
+@attrs.frozen
+class SinePressure(PressureLoad):
+    """P = mean + amplitude · sin(2π·frequency·t + phase).
+
+    >>> p = SinePressure(amplitude=1.0, frequency=2.0, mean=5.0)
+    >>> round(p.average(0.0, 0.5), 12)
+    5.0
+    """
+
+    kind: ClassVar[str] = "sine"
+    amplitude: float = attrs.field(converter=float)  #: dyn/cm²
+    frequency: float = attrs.field(converter=float)  #: Hz
+    mean: float = attrs.field(default=0.0, converter=float)  #: dyn/cm²
+    phase: float = attrs.field(default=0.0, converter=float)  #: rad
+
+    def value(self, t: Any) -> Any:
+        t = np.asarray(t, dtype=float)
+        return self.mean + self.amplitude * np.sin(2.0 * np.pi * self.frequency * t + self.phase)
+
+    def integral(self, t0: float, t1: float) -> float:
+        w = 2.0 * math.pi * self.frequency
+        swing = (math.cos(w * t0 + self.phase) - math.cos(w * t1 + self.phase)) / w
+        return self.mean * (t1 - t0) + self.amplitude * swing
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "amplitude": self.amplitude, "frequency": self.frequency,
+                "mean": self.mean, "phase": self.phase}
+
+
+def read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a two-column CSV ``t, p`` (an optional header line, ``#`` comments).
+
+    Raises ValueError naming the line of a bad row.
+    """
+    rows: list[tuple[float, float]] = []
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        fields = [f.strip() for f in (text.split(",") if "," in text else text.split())]
+        try:
+            t, p = (float(f) for f in fields)
+        except ValueError:
+            if not rows and not any(_is_number(f) for f in fields):
+                continue  # the header line
+            raise ValueError(f"line {number}: expected two numbers 't, p', got {line.strip()!r}") from None
+        rows.append((t, p))
+    if len(rows) < 2:
+        raise ValueError("expected at least two rows 't, p'")
+    data = np.array(rows)
+    if not np.all(np.isfinite(data)):
+        raise ValueError("every t and p must be a finite number")
+    if np.any(np.diff(data[:, 0]) <= 0):
+        raise ValueError("the times t must increase strictly from row to row")
+    return data[:, 0], data[:, 1]
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+@attrs.frozen(eq=False)
+class TablePressure(PressureLoad):
+    """Piecewise-linear P through the points (times, values), times ``scale``.
+
+    Without a ``period`` the first and last values are held before and after
+    the table.  With a ``period`` T the table is one cycle starting at its
+    first time t₀ (it may span at most T; when it ends before t₀ + T the cycle
+    closes linearly back to the first value) and repeats for ever.
+
+    >>> p = TablePressure(np.array([0.0, 1.0]), np.array([0.0, 2.0]), period=2.0)
+    >>> float(p.value(1.5)), p.average(0.0, 2.0), p.average(0.0, 4.0)
+    (1.0, 1.0, 1.0)
+    """
+
+    kind: ClassVar[str] = "table"
+    times: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, dtype=float))
+    values: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, dtype=float))
+    period: float | None = None  #: s; None: no repetition
+    scale: float = attrs.field(default=1.0, converter=float)
+    file: str = ""  #: the file as the case names it
+    sha256: str = ""  #: of the file's bytes
+
+    def __attrs_post_init__(self) -> None:
+        if self.times.shape != self.values.shape or self.times.size < 2:
+            raise ValueError("a table needs at least two points (t, p)")
+        if self.period is not None and self.times[-1] - self.times[0] > self.period * (1 + 1e-12):
+            raise ValueError(
+                f"the table spans {self.times[-1] - self.times[0]:g} s, more than one period ({self.period:g} s)"
+            )
+
+    @classmethod
+    def from_csv(cls, path: Path, file: str = "", period: float | None = None, scale: float = 1.0) -> TablePressure:
+        """Read ``path`` (see :func:`read_table`); ``file`` is the name as the case gives it."""
+        times, values = read_table(path)
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        return cls(times, values, period=period, scale=scale, file=file or str(path), sha256=digest)
+
+    def _knots(self) -> tuple[np.ndarray, np.ndarray]:
+        x, y = self.times, self.scale * self.values
+        if self.period is not None and x[-1] < x[0] + self.period:
+            x, y = np.append(x, x[0] + self.period), np.append(y, y[0])
+        return x, y
+
+    def _within(self, t: np.ndarray) -> np.ndarray:
+        """Map t into the table's time range (one cycle when periodic)."""
+        if self.period is None:
+            return t
+        return self.times[0] + np.mod(t - self.times[0], self.period)
+
+    def value(self, t: Any) -> Any:
+        x, y = self._knots()
+        return np.interp(self._within(np.asarray(t, dtype=float)), x, y)
+
+    def _antiderivative(self, t: float) -> float:
+        """∫ P from the first time t₀ to t, exact for the piecewise-linear P."""
+        x, y = self._knots()
+        cumulative = np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
+        done = 0.0  # whole cycles before t
+        if self.period is not None:
+            # one divmod for both: floor and mod computed apart can disagree by a cycle at a boundary
+            cycles, into = divmod(t - x[0], self.period)
+            done = cycles * cumulative[-1]
+            t = x[0] + into
+        if t <= x[0]:
+            return done + y[0] * (t - x[0])
+        if t >= x[-1]:
+            return done + cumulative[-1] + y[-1] * (t - x[-1])
+        i = int(np.searchsorted(x, t, side="right")) - 1
+        s, slope = t - x[i], (y[i + 1] - y[i]) / (x[i + 1] - x[i])
+        return done + cumulative[i] + y[i] * s + 0.5 * slope * s * s
+
+    def integral(self, t0: float, t1: float) -> float:
+        return self._antiderivative(t1) - self._antiderivative(t0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "file": self.file, "period": self.period, "scale": self.scale,
+                "sha256": self.sha256}
+
+
+_GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(5)
+
+
+@attrs.frozen
+class FormulaPressure(PressureLoad):
+    """P(t) given by a :class:`~multilayer.functions.formula.Formula` in ``t``.
+
+    Its step average uses 5-point Gauss–Legendre (exact for polynomials of degree ≤ 9).
+
+    >>> round(FormulaPressure(Formula.parse("3*t**2", variables=("t",))).average(0.0, 1.0), 12)
+    1.0
+    """
+
+    kind: ClassVar[str] = "formula"
+    formula: Formula
+
+    def value(self, t: Any) -> Any:
+        return self.formula(t=t)
+
+    def integral(self, t0: float, t1: float) -> float:
+        half = 0.5 * (t1 - t0)
+        return half * float(_GAUSS_W @ self.formula(t=t0 + half * (_GAUSS_X + 1.0)))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "expr": str(self.formula)}
+
+
+#: Parameters of each load kind written as a table in a case file.
+KINDS: dict[str, tuple[Param, ...]] = {
+    "constant": (Param("value", "P", "dyn/cm²", doc="the pressure"),),
+    "cosine-pulse": (
+        Param("amplitude", "P_max", "dyn/cm²", doc="peak pressure"),
+        Param("duration", "t_max", "s", gt=0.0, doc="length of the pulse"),
+    ),
+    "sine": (
+        Param("amplitude", "", "dyn/cm²", doc="amplitude of the oscillation"),
+        Param("frequency", "f", "Hz", gt=0.0, doc="frequency"),
+        Param("mean", "", "dyn/cm²", default=0.0, doc="mean pressure"),
+        Param("phase", "φ", "rad", default=0.0, doc="phase at t = 0"),
+    ),
+    "table": (
+        Param("file", type=str, doc="CSV file t,p, relative to the case file's folder"),
+        Param("period", "T", "s", default=None, gt=0.0, doc="repeat the table with this period"),
+        Param("scale", default=1.0, doc="factor applied to every p"),
+        Param("sha256", type=str, default=None, doc="expected SHA-256 of the file (checked if given)"),
+    ),
+    "formula": (Param("expr", type=str, doc="a formula in t"),),
+}
+
+
+def load_from_spec(
+    spec: Any, path: str, base_dir: Path | str = ".", constants: Mapping[str, float] | None = None
+) -> PressureLoad:
+    """Build a load from its case-file form: a number, a formula string or a table.
+
+    Raises
+    ------
+    CaseError
+        With problems at ``path`` (e.g. ``loads.inlet.duration``).
+
+    Examples
+    --------
+    >>> load_from_spec(0, "loads.outlet").to_dict()
+    {'kind': 'constant', 'value': 0.0}
+    >>> round(load_from_spec("1e4*t", "loads.inlet").average(0.0, 2.0), 9)
+    10000.0
+    >>> load_from_spec({"kind": "cosine-pulse", "amplitude": 1.3333e4, "duration": 0.003}, "loads.inlet").kind
+    'cosine-pulse'
+    >>> load_from_spec({"kind": "cosine-puls", "amplitude": 1.0}, "loads.inlet")
+    Traceback (most recent call last):
+    ...
+    multilayer.plugin.problems.CaseError: loads.inlet.kind = 'cosine-puls': no such pressure load kind; did you mean 'cosine-pulse'?
+    """
+    if isinstance(spec, int | float) and not isinstance(spec, bool):
+        if not math.isfinite(spec):
+            raise CaseError([Problem(path, spec, "expected a finite pressure (dyn/cm²)")])
+        return ConstantPressure(spec)
+    if isinstance(spec, str):
+        return FormulaPressure(_formula(spec, path, constants))
+    if not isinstance(spec, Mapping):
+        raise CaseError([Problem(path, spec, "expected a number, a formula in t or a table {kind = ...}")])
+    kind = spec.get("kind", MISSING)
+    if not isinstance(kind, str) or kind not in KINDS:
+        expected = "no such pressure load kind" if kind is not MISSING else "missing; expected a load kind"
+        hint = did_you_mean(kind, KINDS) if isinstance(kind, str) else ""
+        raise CaseError([Problem(f"{path}.kind", kind, expected, hint or "kinds: " + ", ".join(KINDS))])
+    params, problems = check_params(spec, KINDS[kind], path, extra=("kind",))
+    if problems:
+        raise CaseError(problems)
+    if kind == "constant":
+        return ConstantPressure(params["value"])
+    if kind == "cosine-pulse":
+        return CosinePulse(**params)
+    if kind == "sine":
+        return SinePressure(**params)
+    if kind == "formula":
+        return FormulaPressure(_formula(params["expr"], f"{path}.expr", constants))
+    return _table(params, path, Path(base_dir))
+
+
+def _formula(expr: str, path: str, constants: Mapping[str, float] | None) -> Formula:
+    try:
+        return Formula.parse(expr, constants, variables=("t",))
+    except FormulaError as exc:
+        raise CaseError([Problem(path, expr, f"invalid formula in t: {exc}")]) from None
+
+
+def _table(params: dict[str, Any], path: str, base_dir: Path) -> TablePressure:
+    where = f"{path}.file"
+    file = base_dir / params["file"]
+    if not file.is_file():
+        raise CaseError([Problem(where, params["file"], "no such file", f"looked for {file}")])
+    try:
+        table = TablePressure.from_csv(file, params["file"], params["period"], params["scale"])
+    except ValueError as exc:
+        raise CaseError([Problem(where, params["file"], f"invalid table: {exc}")]) from None
+    expected = params["sha256"]
+    if expected is not None and expected.lower() != table.sha256:
+        raise CaseError([Problem(f"{path}.sha256", expected, "the file's SHA-256 differs",
+                                 f"the file now has {table.sha256}")])
+    return table

@@ -1,0 +1,1 @@
+"""Numerical machinery with no physics: linear solvers and their reuse, Krylov, orderings, time schemes, assembly."""

@@ -1,0 +1,240 @@
+"""The plugin registry: entry points in, sorted and de-duplicated records out.
+
+Loading follows tox's manager: the hookspecs first, then every module of the
+``multilayer`` entry-point group (built-ins included), then any plugin object
+a caller registers by hand (a test module, a notebook), then
+``check_pending``.  Each hook implementation is called on its own so that a
+record is always attributed to the package that provided it; pluggy's call
+order is never relied on.
+
+An installed plugin that cannot be loaded — its module fails to import, or
+pluggy rejects its hooks — is skipped with one warning line on stderr
+(:class:`FailedPlugin`), so that it does not break every command for cases
+that do not use it; :attr:`Registry.failed` keeps it for the messages of a
+case that names one of its models.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib.metadata
+import sys
+from collections.abc import Iterable
+from types import ModuleType
+
+import attrs
+import pluggy
+
+from multilayer.plugin import hookspecs
+from multilayer.plugin.records import PluginRecord, Registered
+
+HOOKS = {
+    "layer": "multilayer_layers",
+    "fluid": "multilayer_fluids",
+    "coupler": "multilayer_couplers",
+}
+
+
+class RegistryError(Exception):
+    """A plugin set that cannot be used (two plugins claim one name, a bad record)."""
+
+
+@attrs.frozen
+class FailedPlugin:
+    """An installed plugin (entry point) that could not be loaded, and why.
+
+    >>> print(FailedPlugin("my-layer", "my_package.layer", "my-package 1.0", "ModuleNotFoundError: No module named 'x'"))
+    plugin entry point 'my-layer' (my_package.layer, from my-package 1.0) failed to load and is skipped: \
+ModuleNotFoundError: No module named 'x'
+    """
+
+    name: str  #: the entry point's name
+    value: str  #: what it points at, ``module[:attribute]``
+    package: str  #: distribution name and version
+    error: str  #: the exception, in one line
+
+    def __str__(self) -> str:
+        return (f"plugin entry point {self.name!r} ({self.value}, from {self.package}) failed to load and is "
+                f"skipped: {self.error}")
+
+
+#: entry points already reported in this process: each is reported once, however often plugins are loaded
+_REPORTED: set[tuple[str, str]] = set()
+
+
+def _report(failed: FailedPlugin) -> None:
+    key = (failed.name, failed.value)
+    if key not in _REPORTED:
+        _REPORTED.add(key)
+        print(f"multilayer: warning: {failed}", file=sys.stderr)
+
+
+def _load_entry_points(pm: pluggy.PluginManager) -> tuple[dict[int, tuple[str, str]], list[FailedPlugin]]:
+    """Register every module of the ``multilayer`` entry-point group that loads.
+
+    Returns the (package, version) of each registered plugin by ``id`` and
+    the entry points that failed to load.
+    """
+    dists: dict[int, tuple[str, str]] = {}
+    failed: list[FailedPlugin] = []
+    for dist in importlib.metadata.distributions():
+        for ep in dist.entry_points:
+            if ep.group != hookspecs.PROJECT or pm.get_plugin(ep.name) or pm.is_blocked(ep.name):
+                continue
+            name, version = dist.metadata["Name"], dist.version
+            try:
+                plugin = ep.load()
+                pm.register(plugin, name=ep.name)
+            except Exception as exc:  # a third party's module: any error means "cannot load it"
+                failed.append(FailedPlugin(ep.name, ep.value, f"{name} {version}", f"{type(exc).__name__}: {exc}"))
+                continue
+            dists[id(plugin)] = (name, version)
+    return dists, failed
+
+
+def nearest(name: str, candidates: Iterable[str]) -> str | None:
+    """The closest valid name, for "did you mean" hints.
+
+    >>> nearest("koiter", ["wave-membrane", "koiter-shell"])
+    'koiter-shell'
+    """
+    candidates = list(candidates)
+    hits = difflib.get_close_matches(name, candidates, n=1, cutoff=0.4)
+    if hits:
+        return hits[0]
+    low = name.lower()
+    for c in candidates:
+        if low and (low in c.lower() or c.lower() in low):
+            return c
+    return None
+
+
+def _distribution_of(dists: dict[int, tuple[str, str]], plugin: object) -> tuple[str, str]:
+    if id(plugin) in dists:
+        return dists[id(plugin)]
+    module = plugin.__name__ if isinstance(plugin, ModuleType) else type(plugin).__module__
+    package = module.split(".")[0]
+    try:
+        return package, importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return package, "unversioned"
+
+
+class Registry:
+    """All models available to a run, by kind and name.
+
+    Examples
+    --------
+    >>> reg = Registry.load()
+    >>> reg.get("layer", "wave-membrane").package
+    'multilayer'
+    """
+
+    def __init__(self, pm: pluggy.PluginManager, dists: dict[int, tuple[str, str]] | None = None,
+                 failed: Iterable[FailedPlugin] = ()):
+        self.pm = pm
+        self._dists = dists or {}
+        #: installed plugins that could not be loaded (skipped)
+        self.failed: list[FailedPlugin] = list(failed)
+        self._by_kind: dict[str, dict[str, Registered]] = {}
+        self._collect()
+
+    @classmethod
+    def load(cls, extra: Iterable[object] = (), entry_points: bool = True, warn: bool = True) -> Registry:
+        """Entry-point plugins plus ``extra`` plugin objects registered by hand.
+
+        An entry point that fails to load is skipped and, with ``warn``,
+        reported on stderr (once per process).  A plugin in ``extra`` that
+        pluggy rejects raises :class:`RegistryError`: it was asked for.
+        """
+        pm = pluggy.PluginManager(hookspecs.PROJECT)
+        pm.add_hookspecs(hookspecs)
+        dists, failed = _load_entry_points(pm) if entry_points else ({}, [])
+        extra = list(extra)
+        for plugin in extra:
+            if not pm.is_registered(plugin):
+                try:
+                    pm.register(plugin)
+                except (ValueError, pluggy.PluginValidationError) as exc:
+                    raise RegistryError(f"cannot register {_plugin_name(plugin)}: {exc}") from None
+        while True:
+            try:
+                pm.check_pending()
+                break
+            except pluggy.PluginValidationError as exc:  # a hook of no known name
+                if any(exc.plugin is plugin for plugin in extra):
+                    raise RegistryError(f"{_plugin_name(exc.plugin)}: {exc}") from None
+                name = pm.get_name(exc.plugin)
+                pm.unregister(exc.plugin)
+                failed.append(FailedPlugin(name, _plugin_name(exc.plugin), " ".join(dists.pop(id(exc.plugin), ("?",))),
+                                           f"PluginValidationError: {exc}"))
+        if warn:
+            for failure in failed:
+                _report(failure)
+        return cls(pm, dists, failed)
+
+    def _collect(self) -> None:
+        for kind, hook_name in HOOKS.items():
+            table: dict[str, Registered] = {}
+            for impl in getattr(self.pm.hook, hook_name).get_hookimpls():
+                package, version = _distribution_of(self._dists, impl.plugin)
+                for record in impl.function() or ():
+                    if not isinstance(record, PluginRecord) or record.kind != kind:
+                        raise RegistryError(
+                            f"{hook_name} of package {package!r} returned {record!r}; "
+                            f"expected {kind} records"
+                        )
+                    entry = Registered(record, package, version)
+                    if record.name in table:
+                        other = table[record.name]
+                        raise RegistryError(
+                            f"two plugins claim the {kind} name {record.name!r}: "
+                            f"package {other.package!r} ({other.version}) and "
+                            f"package {package!r} ({version})"
+                        )
+                    table[record.name] = entry
+            self._by_kind[kind] = dict(sorted(table.items()))
+
+    def names(self, kind: str) -> list[str]:
+        return list(self._by_kind[kind])
+
+    def find(self, kind: str, name: str) -> Registered | None:
+        return self._by_kind[kind].get(name)
+
+    def get(self, kind: str, name: str) -> Registered:
+        found = self.find(kind, name)
+        if found is None:
+            hint = nearest(name, self.names(kind))
+            msg = f"no {kind} plugin named {name!r}"
+            if hint:
+                msg += f"; did you mean {hint!r}?"
+            raise KeyError(msg + self.failure_note())
+        return found
+
+    def failure_note(self) -> str:
+        """``"; note: plugin entry point 'x' (...) failed to load ..."`` when one did, else ``""``.
+
+        Added to the message of a model name that is not found: the model may
+        be one of the plugin's.
+        """
+        return "".join(f"; note: {failure}" for failure in self.failed)
+
+    def all(self) -> list[Registered]:
+        return [r for kind in HOOKS for r in self._by_kind[kind].values()]
+
+
+def _plugin_name(plugin: object) -> str:
+    return plugin.__name__ if isinstance(plugin, ModuleType) else repr(plugin)
+
+
+def plugin_versions(case, registry: Registry) -> dict[str, dict[str, str]]:
+    """Which package and version provides every model of ``case``, by its key path (``coupler``, ``layers[0]``...)."""
+    specs = [("coupler", case.coupler), *(("layer", s) for s in case.layers)]
+    if case.fluid is not None:
+        specs.append(("fluid", case.fluid))
+    out = {}
+    for kind, spec in specs:
+        reg = registry.find(kind, spec.model)
+        if reg is not None:
+            out[spec.path] = {"name": spec.model, "package": reg.package, "version": reg.version}
+    return out

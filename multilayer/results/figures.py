@@ -1,0 +1,136 @@
+"""The figures of one run, from its results folder alone: ``multilayer plot DIR`` and the end of ``run``.
+
+* ``eta_spacetime.png`` — η(z, t) on the lumen line (from ``eta_lumen.csv``);
+* ``probes.png`` — every probe against time, one panel per quantity, each axis with its unit;
+* ``energy.png`` — the energy ledger: stored energy, cumulative work and
+  dissipation, and the relative residual of every step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from multilayer.results.reading import lumen_eta, read_run
+
+#: what each probe quantity is, and its unit (CGS)
+QUANTITIES = {
+    "eta": ("η, radial wall displacement", "cm"),
+    "v": ("v, radial wall velocity", "cm/s"),
+    "d_z": ("d_z, axial wall displacement", "cm"),
+    "d_r": ("d_r, radial wall displacement", "cm"),
+    "u_z": ("u_z, axial fluid velocity", "cm/s"),
+    "u_r": ("u_r, radial fluid velocity", "cm/s"),
+    "p": ("p, pressure", "dyn/cm²"),
+    "flow_rate": ("Q, flow rate", "cm²/s"),
+}
+
+
+def plot_run(folder: Path | str) -> list[Path]:
+    """Write the run's figures into ``folder``; returns their paths (those that could be made)."""
+    folder = Path(folder)
+    run = read_run(folder.name, folder)
+    written = []
+    radius = (run.case.get("geometry") or {}).get("radius")
+    field = lumen_eta(folder, radius) if radius is not None else None
+    if field is not None:
+        plot_spacetime({run.case.get("title", folder.name)[:60] or folder.name: field}, folder / "eta_spacetime.png")
+        written.append(folder / "eta_spacetime.png")
+    if run.probes and len(run.t):
+        plot_probes(run, folder / "probes.png")
+        written.append(folder / "probes.png")
+    if "energy.total" in run.series and len(run.t):
+        plot_energy(run, folder / "energy.png")
+        written.append(folder / "energy.png")
+    return written
+
+
+def _where(p) -> str:
+    return f"z = {p['z']:g} cm" + (f", r = {p['r']:g} cm" if p.get("r") is not None else "")
+
+
+def plot_probes(run, path: Path) -> None:
+    """One panel per probe quantity, every probe of that quantity against t, the axis in its unit."""
+    groups: dict[str, list] = {}
+    for p in run.probes:
+        groups.setdefault(p["quantity"], []).append(p)
+    fig = Figure(figsize=(8, 1.2 + 2.4 * len(groups)), layout="constrained")
+    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (quantity, probes) in zip(axes, groups.items()):
+        for p in probes:
+            ax.plot(run.t, run.series[p["name"]], label=f"{p['name']} ({_where(p)})")
+        what, unit = QUANTITIES.get(quantity, (quantity, ""))
+        ax.set_ylabel(f"{what.split(',')[0]} ({unit})" if unit else what)
+        ax.set_title(what, fontsize="medium")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small", ncols=2 if len(probes) > 4 else 1)
+    axes[-1].set_xlabel("t (s)")
+    save_figure(fig, path)
+
+
+def plot_energy(run, path: Path) -> None:
+    """Stored energy, cumulative work and dissipation (g·cm²/s² per unit depth), and each step's residual."""
+    s, t = run.series, run.t
+    work = np.cumsum(sum((s[k] for k in s if k.startswith("work.")), np.zeros_like(t)))
+    dissipation = np.cumsum(sum((s[k] for k in s if k.startswith("dissipation.")), np.zeros_like(t)))
+    stored = s["energy.total"]
+    initial = stored[0] - (work[0] - dissipation[0])  # E⁰ = E¹ − work¹ + dissipation¹ (the ledger of step 1)
+    fig = Figure(figsize=(8, 6), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    top.plot(t, stored, label="stored energy E")
+    top.plot(t, initial + work, label="E⁰ + cumulative work")
+    top.plot(t, dissipation, label="cumulative dissipation (viscous, numerical, …)")
+    top.set_ylabel("energy (erg/cm)")
+    top.set_title("energy ledger: E = E⁰ + work − dissipation every step", fontsize="medium")
+    top.grid(alpha=0.3)
+    top.legend(fontsize="small")
+    residual = np.maximum(s.get("energy.relative_residual", np.zeros_like(t)), 1e-300)
+    bottom.semilogy(t, residual, ".", ms=3)
+    bottom.set_ylabel("|residual| / scale")
+    bottom.set_xlabel("t (s)")
+    bottom.set_title("relative residual of each step's energy identity", fontsize="medium")
+    bottom.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+def _edges(x: np.ndarray) -> tuple[float, float]:
+    """The outer edges of pixels centred on the uniformly spaced samples ``x``.
+
+    >>> _edges(np.array([0.0, 1.0, 2.0])), _edges(np.array([3.0]))
+    ((-0.5, 2.5), (2.5, 3.5))
+    """
+    half = 0.5 * (x[-1] - x[0]) / (len(x) - 1) if len(x) > 1 else 0.5
+    return float(x[0] - half), float(x[-1] + half)
+
+
+def save_figure(fig: Figure, path: Path) -> None:
+    """Draw ``fig`` on an Agg canvas and write it to ``path`` (100 dpi)."""
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=100)
+
+
+def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray] | None], path: Path) -> None:
+    """η(z, t) per run side by side, on one symmetric colour scale."""
+    labels = list(fields) or ["(none)"]
+    peak = max((float(np.nanmax(np.abs(f[2]))) for f in fields.values() if f is not None), default=0.0) or 1.0
+    fig = Figure(figsize=(1.0 + 3.2 * len(labels), 4.5), layout="constrained")
+    axes = fig.subplots(1, len(labels), sharey=True, squeeze=False)[0]
+    image = None
+    for ax, label in zip(axes, labels):
+        field = fields.get(label)
+        ax.set_title(label, fontsize="medium")
+        ax.set_xlabel("z (cm)")
+        if field is None:
+            ax.text(0.5, 0.5, "no snapshots", ha="center", va="center", transform=ax.transAxes)
+            continue
+        z, t, eta = field
+        image = ax.imshow(eta, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-peak, vmax=peak,
+                          extent=(*_edges(z), *_edges(t)), interpolation="nearest")
+    axes[0].set_ylabel("t (s)")
+    if image is not None:
+        fig.colorbar(image, ax=list(axes), label="η (cm)")
+    save_figure(fig, path)

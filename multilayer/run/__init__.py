@@ -1,0 +1,1 @@
+"""Running a case: the time loop, its guards, the ledger, checkpoints, progress."""

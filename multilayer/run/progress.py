@@ -1,0 +1,45 @@
+"""What a run shows while it goes and when it ends.
+
+A progress bar (tqdm) on stderr with the step, the simulated time, the
+estimated time left and the current ledger residual — only on a terminal,
+and never with ``--quiet`` — and a short summary at the end.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+
+class ProgressBar:
+    """Called after every step with the run's tally and the step's row (see :func:`multilayer.run.loop.run_case`)."""
+
+    def __init__(self, steps: int, end: float, start: int = 0, enabled: bool | None = None):
+        enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.end = end
+        self.bar = tqdm(total=steps, initial=start, unit="step", disable=not enabled, file=sys.stderr,
+                        dynamic_ncols=True, leave=False)
+
+    def __call__(self, tally, row) -> None:
+        self.bar.update(tally.steps - self.bar.n)
+        self.bar.set_postfix_str(f"t = {tally.t:.4g}/{self.end:.4g} s, ledger {row['energy.relative_residual']:.1e}",
+                                 refresh=False)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def summary(result, wall_time_s: float, folder: Path, checkpoint: bool = False) -> str:
+    """A few lines: status, steps, wall time, ledger residual, peak |η| per probe, where the results are."""
+    lines = [f"{result.status}: {result.steps} steps to t = {result.t:.6g} s in {wall_time_s:.3g} s; "
+             f"energy ledger closes to {result.max_relative_residual:.1e} (relative)"]
+    if result.reason:
+        lines.append(f"  {result.reason}")
+    if result.peaks:
+        lines.append("  peak |η|: " + ", ".join(f"{name} {1e4 * value:.4g} µm" for name, value in result.peaks.items()))
+    lines.append(f"  results in {folder}")
+    if result.status == "interrupted" and checkpoint:
+        lines.append(f"  resume with: multilayer resume {folder}")
+    return "\n".join(lines)

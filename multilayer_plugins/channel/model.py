@@ -1,0 +1,226 @@
+"""The incompressible fluid of the channel: one class, advection on or off.
+
+``navier-stokes`` and ``stokes`` are the same model of theory §6 A2; Stokes
+drops the two advection terms and keeps everything else, the moving-domain
+term included.  The model holds its physical parameters; :meth:`setup`
+attaches a discretization (a :class:`multilayer_plugins.channel.step.FluidStep`) on
+which the other methods act.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import numpy as np
+from multilayer_plugins.channel import probes
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.ledger import fluid_kinetic
+from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
+
+from multilayer.fluid.contract import Fluid
+from multilayer.geometry.spaces import LineSpace
+from multilayer.numerics.linsolve import Reuse, SolverStats
+from multilayer.plugin.records import Param
+
+#: The parameters of every channel fluid, for its plugin record.
+PARAMS = (
+    Param("density", "ρ_f", "g/cm³", gt=0.0, doc="density of the fluid"),
+    Param("viscosity", "μ", "P = g/(cm·s)", gt=0.0, doc="dynamic viscosity of the fluid"),
+)
+
+
+class ChannelFluid(Fluid):
+    """An incompressible Newtonian fluid in the 2D channel, on the ALE reference domain.
+
+    Parameters
+    ----------
+    density : float
+        ρ_f (g/cm³), > 0.
+    viscosity : float
+        μ (poise, g/(cm·s)), > 0.
+
+    Examples
+    --------
+    >>> from multilayer.fluid.contract import Domain
+    >>> from multilayer.numerics.timescheme import SCHEMES
+    >>> fluid = NavierStokes(density=1.0, viscosity=0.035)
+    >>> step = fluid.setup(length=1.0, radius=0.5, nz=2, nr=2, order=2, wall="rigid")
+    >>> state = fluid.initial_state()
+    >>> still = Domain.still(fluid.line.ndofs)
+    >>> sol, terms = fluid.step([state], still, SCHEMES["backward-euler"], 1e-3, p_in=10.0)
+    >>> sol.state.u.shape == (step.channel.nu,), abs(terms["a2.residual"]) < 1e-12 * terms["a2.scale"]
+    (True, True)
+    """
+
+    #: whether the advection terms are assembled
+    advection: ClassVar[bool] = True
+
+    def __init__(self, density: float, viscosity: float):
+        for name, value in (("density", density), ("viscosity", viscosity)):
+            if not value > 0.0:
+                raise ValueError(f"fluid {name} must be > 0, got {value!r}")
+        self.density = float(density)
+        self.viscosity = float(viscosity)
+        self._discrete: FluidStep | None = None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r})"
+
+    def setup(
+        self,
+        length: float,
+        radius: float,
+        nz: int,
+        nr: int,
+        order: int = 2,
+        grading: float = 1.0,
+        wall: str = "coupled",
+        solver: str = "superlu",
+        line: LineSpace | None = None,
+        reuse: Reuse = Reuse(),
+    ) -> FluidStep:
+        """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``.
+
+        ``wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
+        :mod:`multilayer_plugins.channel.step`); ``line`` is the interface line's space
+        when the caller already has it; ``reuse`` when a changing matrix is
+        refactorized (:class:`multilayer.numerics.linsolve.Reuse`).  Returns the discretization, which is
+        also kept on the fluid for the methods below.
+        """
+        channel = Channel.build(length, radius, nz, nr, order, grading, line)
+        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, wall, solver, reuse)
+        return self._discrete
+
+    @property
+    def discrete(self) -> FluidStep:
+        if self._discrete is None:
+            raise RuntimeError("call fluid.setup(...) before using the discretization")
+        return self._discrete
+
+    @property
+    def channel(self) -> Channel:
+        return self.discrete.channel
+
+    @property
+    def line(self) -> LineSpace:
+        """The interface line r = R; the fluid's wall u_r DOFs are its DOFs."""
+        return self.channel.line
+
+    @property
+    def ndofs(self) -> int:
+        return self.channel.ndofs
+
+    @property
+    def interface_dofs(self) -> np.ndarray:
+        return self.discrete.interface_dofs
+
+    @property
+    def stats(self) -> SolverStats:
+        return self.discrete.stats
+
+    @property
+    def timings(self) -> dict[str, float]:
+        return {"assembly": self.discrete.assembly_s, "ledger": self.discrete.ledger_s}
+
+    def initial_state(
+        self, velocity: Callable[[np.ndarray, np.ndarray], tuple] | None = None, eta: np.ndarray | None = None
+    ) -> FluidState:
+        """Rest, or the interpolant of ``velocity(z, r) -> (u_z, u_r)`` given in the physical domain of ``eta``."""
+        ch = self.channel
+        eta = self._eta(eta)
+        u = np.zeros(ch.nu)
+        if velocity is not None:
+            R = ch.radius
+
+            def on_reference(zh, rh):
+                return velocity(zh, rh * (R + probes.wall_displacement(ch, eta, zh)) / R)
+
+            u = ch.interpolate(on_reference)
+        return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u))
+
+    def system(self, history, domain, scheme, dt, p_in=0.0, p_out=0.0, interface=None) -> FluidSystem:
+        """See :meth:`multilayer_plugins.channel.step.FluidStep.system`."""
+        return self.discrete.system(history, domain, scheme, dt, p_in, p_out, interface)
+
+    def matrix(self, system: FluidSystem):
+        """(A, b, fixed DOFs, fixed values) of ``system``, A in CSR with the interface terms."""
+        return self.discrete.pattern.matrix(system.data), system.rhs, system.fixed, system.fixed_values
+
+    def solve(self, system: FluidSystem) -> Solution:
+        return self.discrete.solve(system)
+
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
+        return self.discrete.prescribe(system, wall_velocity)
+
+    def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
+        return self.discrete.advance(system, mean)
+
+    def identity(self, system, solution, eta_old, eta_new) -> dict[str, float]:
+        return self.discrete.identity(system, solution, eta_old, eta_new)
+
+    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
+        return self.discrete.reaction(system, mean)
+
+    def wall_velocity(self, state: FluidState) -> np.ndarray:
+        return state.v
+
+    def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+        ch = self.channel
+        eta = self._eta(eta)
+        fields = ALEFields.at(ch, eta, np.zeros_like(eta))
+        return fluid_kinetic(ch, self.density, fields.J, state.u)
+
+    def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float) -> float:
+        """Volume flux through the section at z (cm²/s)."""
+        return probes.flow_rate(self.channel, state.u, self._eta(eta), z)
+
+    def probe(self, quantity: str, z: float, rhat: float | None = None):
+        """A function (state, η) → value for ``quantity`` (``u_z``, ``u_r``, ``p`` at the
+        reference point (z, r̂), or ``flow_rate`` through the section z), built once."""
+        ch = self.channel
+        if quantity == "flow_rate":
+            sample = probes.flow_rate_sampler(ch, z)
+            return lambda state, eta: sample(state.u, self._eta(eta))
+        point = probes.reference_point_sampler(ch, quantity, z, rhat)
+        return lambda state, eta: point(state.u, state.p)
+
+    def velocity(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array (cm/s)."""
+        return probes.velocity(self.channel, state.u, self._eta(eta), z, r)
+
+    def pressure(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
+        """Pressure at physical points (dyn/cm²)."""
+        return probes.pressure(self.channel, state.p, self._eta(eta), z, r)
+
+    def snapshot(self, state: FluidState, eta: np.ndarray | None = None):
+        """(points, triangles, point_data) in the deformed geometry; see :func:`probes.snapshot`."""
+        return probes.snapshot(self.channel, state.u, state.p, self._eta(eta))
+
+    def _eta(self, eta: np.ndarray | None) -> np.ndarray:
+        return np.zeros(self.line.ndofs) if eta is None else eta
+
+
+class NavierStokes(ChannelFluid):
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection)."""
+
+    advection = True
+
+
+class Stokes(ChannelFluid):
+    """Unsteady Stokes: Navier–Stokes without the advection terms."""
+
+    advection = False
+
+
+def wall_motion(line: LineSpace, eta: Callable[[float, np.ndarray], np.ndarray], t: float, dt: float):
+    """(ηⁿ, η^{n+1}, c) on the line for a prescribed law ``eta(t, z)`` (cm): c = (η^{n+1} − ηⁿ)/Δt.
+
+    With c the wall's u_r over the step, ηⁿ + Δt c = η^{n+1} holds exactly
+    (the discrete mass balance of the moving channel).
+    """
+    now = np.asarray(eta(t, line.z), dtype=float)
+    then = np.asarray(eta(t + dt, line.z), dtype=float)
+    return now, then, (then - now) / dt

@@ -1,0 +1,127 @@
+"""Values of a fluid state in the physical (deformed) channel: probes and snapshots.
+
+A physical point (z, r) of the domain of η is the reference point
+(z, r̂ = R r / (R + η(z))); fields are evaluated there on the fixed mesh.
+Probes of a run are built once as samplers: their reference points do not
+move, only J(z) of a flow rate changes with the wall.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from multilayer_plugins.channel.channel import Channel
+
+
+def wall_displacement(channel: Channel, eta: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """η(z) for a line vector η."""
+    z = np.atleast_1d(np.asarray(z, dtype=float))
+    return channel.line.basis.probes(z[None, :]) @ eta
+
+
+def to_reference(channel: Channel, eta: np.ndarray, z, r) -> np.ndarray:
+    """Reference points (ẑ, r̂) of physical points (z, r): a (2, n) array."""
+    z = np.atleast_1d(np.asarray(z, dtype=float))
+    r = np.broadcast_to(np.asarray(r, dtype=float), z.shape)
+    R = channel.radius
+    return np.vstack([z, R * r / (R + wall_displacement(channel, eta, z))])
+
+
+def velocity(channel: Channel, u: np.ndarray, eta: np.ndarray, z, r) -> np.ndarray:
+    """(u_z, u_r) at physical points: a (2, n) array (cm/s)."""
+    x = to_reference(channel, eta, z, r)
+    return (channel.velocity.probes(x) @ u).reshape(2, -1)
+
+
+def pressure(channel: Channel, p: np.ndarray, eta: np.ndarray, z, r) -> np.ndarray:
+    """p at physical points (dyn/cm²)."""
+    return channel.pressure.probes(to_reference(channel, eta, z, r)) @ p
+
+
+def section_nodes(channel: Channel, z: float) -> np.ndarray:
+    """r̂ where the vertical line ẑ = z crosses mesh edges (0 and R included), sorted."""
+    mesh = channel.mesh
+    ends = mesh.p[:, mesh.facets]  # (2 coords, 2 ends, facets)
+    z0, z1 = ends[0]
+    r0, r1 = ends[1]
+    crossing = (np.minimum(z0, z1) <= z) & (z <= np.maximum(z0, z1)) & (z0 != z1)
+    s = (z - z0[crossing]) / (z1[crossing] - z0[crossing])
+    r = r0[crossing] + s * (r1[crossing] - r0[crossing])
+    return np.unique(np.concatenate([[0.0, channel.radius], r]))
+
+
+def flow_rate_sampler(channel: Channel, z: float):
+    """Q(z) as a function of (u, η), its sampling built once.
+
+    Q(z) = ∫₀^{R+η(z)} u_z dr = J(z) ∫₀^R u_z(z, r̂) dr̂ (cm²/s), exact for the
+    element: Gauss–Legendre with three points between consecutive crossings
+    of mesh edges integrates P2 and P1b velocities exactly.  Neither the
+    points nor the weights depend on η, so only J(z) changes with the wall.
+    """
+    nodes = section_nodes(channel, z)
+    g, wg = np.polynomial.legendre.leggauss(3)
+    a, b = nodes[:-1, None], nodes[1:, None]
+    rhat = (0.5 * (a + b) + 0.5 * (b - a) * g).ravel()
+    weights = (0.5 * (b - a) * wg).ravel()
+    x = np.vstack([np.full_like(rhat, z), rhat])
+    row = weights @ channel.velocity.probes(x).tocsr()[: len(rhat)]  # the u_z rows
+    eta_row = channel.line.basis.probes(np.array([[z]])).tocsr()
+    R = channel.radius
+
+    def sample(u: np.ndarray, eta: np.ndarray) -> float:
+        return (1.0 + float((eta_row @ eta)[0]) / R) * float(row @ u)
+
+    return sample
+
+
+def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float) -> float:
+    """Q(z) (cm²/s); see :func:`flow_rate_sampler`."""
+    return flow_rate_sampler(channel, z)(u, eta)
+
+
+def reference_point_sampler(channel: Channel, quantity: str, z: float, rhat: float):
+    """u_z, u_r or p at the reference point (z, r̂), as a function of (u, p).
+
+    The point follows the ALE map: it sits at r = r̂ (R + η(z))/R in the
+    physical channel, so it never leaves the fluid however the wall moves.
+    """
+    x = np.array([[z], [rhat]])
+    if quantity == "p":
+        row = channel.pressure.probes(x).tocsr()
+        return lambda u, p: float((row @ p)[0])
+    row = channel.velocity.probes(x).tocsr()[{"u_z": 0, "u_r": 1}[quantity]]
+    return lambda u, p: float((row @ u)[0])
+
+
+def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(points, triangles, point_data) of the mesh vertices in the physical geometry.
+
+    ``points`` is (n, 2) in (z, r); ``point_data`` holds ``velocity`` (n, 2),
+    ``pressure`` (n,) and ``displacement`` (n, 2), the ALE displacement
+    (0, η r̂/R) that moves a vertex of Ω̂ to its place.
+    """
+    mesh = channel.mesh
+    zhat, rhat = mesh.p
+    eta_v = wall_displacement(channel, eta, zhat)
+    displacement = np.vstack([np.zeros_like(zhat), eta_v * rhat / channel.radius])
+    vertex_u = channel.velocity.nodal_dofs  # (2 components, vertices)
+    vel = u[vertex_u]
+    pres = p[channel.pressure.nodal_dofs[0]]
+    points = (mesh.p + displacement).T
+    data = {"velocity": vel.T.copy(), "pressure": pres.copy(), "displacement": displacement.T.copy()}
+    return points, mesh.t.T.copy(), data
+
+
+def l2_error(channel: Channel, u: np.ndarray, eta: np.ndarray, exact) -> float:
+    """‖u_h − u‖ in L²(Ω(η)) for ``exact(z, r) -> (u_z, u_r)`` given on the physical domain.
+
+    Evaluated with the quadrature of the assembly, J dx̂ being the physical measure.
+    """
+    basis = channel.velocity
+    R = channel.radius
+    eta_q = (channel.eta_at_quad @ eta).reshape(channel.quad_shape)
+    J = (R + eta_q) / R
+    zq, rq = np.asarray(basis.global_coordinates())
+    ez, er = exact(zq, J * rq)
+    uh = np.asarray(basis.interpolate(u))
+    integrand = J * ((uh[0] - ez) ** 2 + (uh[1] - er) ** 2)
+    return float(np.sqrt(np.sum(integrand * basis.dx)))

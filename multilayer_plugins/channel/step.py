@@ -1,0 +1,436 @@
+"""The fluid step on one domain: the linear Oseen-type system for (ū, p̄), its solve, its energy identity.
+
+On the reference channel, with the ALE fields of the step's domain (η_m, and
+the domain velocity c that moves it) and a time scheme with coefficients
+α, β (:mod:`multilayer.numerics.timescheme`), find the test-level unknowns
+ū = Σβ_k u^{n+1−k} and p̄ with u_r = 0 on the axis, inlet and outlet, u_z = 0
+on the wall, such that
+
+    ρ_f/Δt mass_J(Σ α_k u^{n+1−k}, q) + ρ_f advection_skew(ū, q) + ρ_f moving_domain(ū, q)
+  + 2μ viscous(ū, q) − ∫ J p̄ ∇^η·q + ∫ J π ∇^η·ū + [R v̄ − r]·ψ
+  = P̄_in ∫_Γin J q_z − P̄_out ∫_Γout J q_z.
+
+The old levels go to the right-hand side, so the matrix is
+(α₀/β₀) ρ_f/Δt mass_J + the rest (a backward-Euler matrix of step Δt β₀/α₀).
+[R v̄ − r] is what a coupler puts on the wall's u_r rows (line numbering):
+the thin layer's inertia as a Robin term in the kinematically coupled scheme
+(theory §6 A2), nothing in a monolithic solve, which adds the wall itself.
+
+Wall modes:
+
+``coupled``
+    the wall's u_r DOFs are unknowns (ū_r = v̄ on Γ);
+``rigid``
+    u = 0 on the wall and the domain never moves;
+``prescribed``
+    ū_r = c on the wall (Dirichlet): the wall moves as given.
+
+The matrix is assembled into a sparsity pattern fixed at setup
+(:class:`multilayer.numerics.assembly.pattern.Pattern`).  On a rigid wall only the
+advection term changes between steps, and a Stokes fluid on a rigid wall
+has a constant matrix: it is factorized once per Δt.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.ledger import Quadrature
+
+from multilayer.fluid.contract import Domain, Interface
+from multilayer.geometry.spaces import prolongation_dofs
+from multilayer.numerics.assembly.batched import BatchedForm, SkewPart
+from multilayer.numerics.assembly.pattern import Pattern
+from multilayer.numerics.linsolve import (
+    Factorized,
+    Reuse,
+    ReusingSolver,
+    SolverStats,
+    factorize,
+)
+from multilayer.numerics.timescheme import TimeScheme, levels
+
+WALL_MODES = ("coupled", "rigid", "prescribed")
+
+
+@attrs.frozen(eq=False)
+class FluidState:
+    """Velocity and pressure DOFs on the reference channel, and the wall velocity.
+
+    ``v`` is the wall's u_r as a vector of the interface line's space:
+    the kinematic condition u = v e_r on Γ, in the thin layer's numbering.
+    ``p`` is the pressure of the step that made the state (at the scheme's
+    test level: the midpoint for Crank–Nicolson).
+    """
+
+    u: np.ndarray
+    p: np.ndarray
+    v: np.ndarray
+
+
+@attrs.frozen(eq=False)
+class FluidSystem:
+    """One step's linear system: matrix (CSR data in the fixed pattern), right-hand side, what it was built from.
+
+    ``matrix`` and ``rhs`` hold the fluid's own equations plus the coupler's
+    interface terms; ``own`` is the data without the interface terms (for the
+    wall reaction).  ``fixed`` are the Dirichlet DOFs with values ``fixed_values``.
+    ``data`` and ``own`` are buffers the step keeps for the run (the
+    pattern's filler's, and a copy with the interface terms): they hold this
+    system's matrix until the next :meth:`FluidStep.system`, so a system is
+    solved in the step that assembles it (every coupler does).
+    """
+
+    data: np.ndarray
+    own: np.ndarray
+    rhs: np.ndarray
+    own_rhs: np.ndarray
+    fixed: np.ndarray
+    fixed_values: np.ndarray
+    fields: ALEFields
+    domain: Domain
+    scheme: TimeScheme
+    dt: float
+    history: tuple[FluidState, ...]
+    p_in: float
+    p_out: float
+    interface: Interface | None
+    #: what stands for this system's matrix in the solver (kept by ``attrs.evolve``: a prescribed wall
+    #: velocity changes the right-hand side only, so the same factors serve)
+    token: object = attrs.field(factory=object)
+
+
+@attrs.frozen(eq=False)
+class Solution:
+    """The solved test-level unknowns x̄ = (ū, p̄) and the new state."""
+
+    mean: np.ndarray
+    state: FluidState
+
+
+class FluidStep:
+    """The discretization of one fluid on one channel for one wall mode.
+
+    Parameters
+    ----------
+    channel : Channel
+        Reference mesh, spaces and DOF sets.
+    density, viscosity : float
+        ρ_f (g/cm³) and μ (poise).
+    advection : bool
+        True for Navier–Stokes, False for Stokes (the moving-domain term stays).
+    wall : str
+        ``"coupled"``, ``"rigid"`` or ``"prescribed"``.
+    solver : str
+        A backend of :mod:`multilayer.numerics.linsolve`.
+    reuse : Reuse
+        When a changing matrix is refactorized (:class:`multilayer.numerics.linsolve.Reuse`).
+    """
+
+    def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
+                 wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse()):
+        if wall not in WALL_MODES:
+            raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
+        self.channel = channel
+        self.density = density
+        self.viscosity = viscosity
+        self.advection = advection
+        self.wall = wall
+        self.solver = solver
+        self.stats = SolverStats()
+        self._solver = ReusingSolver(self.stats, solver, reuse)
+        self.assembly_s = 0.0
+        self.ledger_s = 0.0
+
+        ub, pb = channel.velocity, channel.pressure
+        nu, n = channel.nu, channel.ndofs
+        self._uu = BatchedForm(ub)
+        self._pu = BatchedForm(ub, pb)
+        uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
+        self.pattern = Pattern((n, n), [uu, pu, pu[::-1]])
+        # the data array of a step: velocity block, divergence rows, and their negated transpose
+        self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
+                                          self.pattern.slots(*pu[::-1])], scales=[1.0, 1.0, -1.0])
+        #: the velocity DOF of each line DOF: where the wall's u_r sits
+        self.interface_dofs = prolongation_dofs(channel.prolongation)
+
+        fixed = [channel.normal_r, channel.wall_z]
+        if wall != "coupled":
+            fixed.append(channel.wall_r)
+        self.fixed = np.unique(np.concatenate(fixed))
+        self.free = np.setdiff1d(np.arange(n), self.fixed)
+        self._block_ff = self.pattern.block(self.free, self.free)
+        self._block_fd = self.pattern.block(self.free, self.fixed)
+
+        self._quadrature = Quadrature(self._uu, density)
+        self._load_in = forms.dynamic_pressure.assemble(channel.inlet, J=1.0)
+        self._load_out = forms.dynamic_pressure.assemble(channel.outlet, J=1.0)
+        self._rigid = ALEFields.rigid(channel)
+        self._static: dict[float, tuple] = {}  # rigid wall: element data of the geometry part, per mass coefficient
+        self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
+        self._interface_slots: tuple | None = None
+        self._buffers: tuple[np.ndarray, np.ndarray] | None = None
+        # the data with the interface terms (and the free block's values, kept by the block): kept for the run,
+        # so only the latest system's matrix is valid — every coupler solves a system in the step that assembles it
+        self._with_interface: np.ndarray | None = None
+
+    @property
+    def constant_matrix(self) -> bool:
+        """True when the matrix never changes for a given Δt: Stokes on a rigid wall."""
+        return self.wall == "rigid" and not self.advection
+
+    # -- assembly -------------------------------------------------------------
+    # The forms of a step fall in three parts (docs/performance.md, "Assembly"):
+    # constant for the run (the reference jets, the sparsity pattern and its slots,
+    # the end-load vectors: built in __init__), geometry-only (mass_J, viscous,
+    # pressure_divergence: they depend on η alone) and state (moving_domain on
+    # the domain velocity, advection_skew on uⁿ − w, assembled as SkewPart(advection):
+    # the convective kernel once, then ½(K − Kᵀ)).  The geometry part is
+    # kept where η never changes (a rigid wall); on a moving wall it changes
+    # every step and is assembled with the state part in one pass.
+    def _geometry_terms(self, fields: ALEFields, mass_coefficient: float) -> list:
+        kw = fields.forms_kwargs()
+        return [(mass_coefficient, forms.mass_J, kw), (2.0 * self.viscosity, forms.viscous, kw)]
+
+    def _state_terms(self, fields: ALEFields, a: np.ndarray | None) -> list:
+        terms = []
+        if np.any(fields.dJdt):
+            terms.append((self.density, forms.moving_domain, {"dJdt": fields.dJdt}))
+        if a is not None:
+            terms.append((self.density, SkewPart(forms.advection), dict(fields.forms_kwargs(), a=a)))
+        return terms
+
+    def _element_data(self, fields: ALEFields, mass_coefficient: float, a: np.ndarray | None):
+        """Element matrices of the velocity block (every term) and of the divergence block."""
+        state = self._state_terms(fields, a)
+        if self.wall != "rigid":
+            if self._buffers is None:  # the element data of every step goes here: no fresh pages per step
+                self._buffers = (np.empty(self._uu.shape), np.empty(self._pu.shape))
+            geometry = self._geometry_terms(fields, mass_coefficient)
+            div = self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())], out=self._buffers[1])
+            return self._uu.data(geometry + state, out=self._buffers[0]), div
+        if mass_coefficient not in self._static:
+            self._static[mass_coefficient] = (
+                self._uu.data(self._geometry_terms(fields, mass_coefficient)),
+                self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())]))
+        velocity, div = self._static[mass_coefficient]
+        return (velocity + self._uu.data(state) if state else velocity), div
+
+    def _interface_terms(self, interface: Interface | None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(slots, values) of the coupler's matrix R on the wall u_r DOFs; slots looked up once per R."""
+        if interface is None:
+            return []
+        if self._interface_slots is None or self._interface_slots[0] is not interface.matrix:
+            R = sp.coo_matrix(interface.matrix)
+            rows, cols = self.interface_dofs[R.row], self.interface_dofs[R.col]
+            self._interface_slots = (interface.matrix, self.pattern.slots(rows, cols), R.data)
+        return [self._interface_slots[1:]]
+
+    def _check(self, domain: Domain, interface: Interface | None, history: Sequence[FluidState]) -> None:
+        nline = self.channel.line.ndofs
+        if domain.eta.shape != (nline,) or domain.velocity.shape != (nline,):
+            raise ValueError(f"η and the domain velocity must be vectors of the interface line ({nline} DOFs)")
+        if self.wall == "rigid" and (np.any(domain.eta) or np.any(domain.velocity)):
+            raise ValueError("a rigid wall does not move: pass η = v = 0")
+        if self.wall != "coupled" and interface is not None:
+            raise ValueError(f"interface terms only enter the coupled wall mode, not {self.wall!r}")
+        if interface is not None and (interface.matrix.shape != (nline, nline) or interface.rhs.shape != (nline,)):
+            raise ValueError(f"the interface terms must be a {nline} × {nline} matrix and a vector on the line")
+        if self.wall == "prescribed":
+            self._check_ends(domain.velocity)
+        if not history:
+            raise ValueError("the fluid step needs the state at tⁿ")
+
+    def _check_ends(self, c: np.ndarray) -> None:
+        ends = list(self.channel.ends)
+        if np.max(np.abs(c[ends])) > 1e-12 * max(np.max(np.abs(c)), 1e-300):
+            raise ValueError("a prescribed wall motion must vanish at z = 0 and z = L (u_r = 0 there)")
+
+    def system(self, history: Sequence[FluidState], domain: Domain, scheme: TimeScheme, dt: float,
+               p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> FluidSystem:
+        """Assemble the step's system on ``domain`` (see the module docstring).
+
+        ``history`` holds uⁿ, u^{n−1}, ... (newest first; padded with the
+        oldest when a multistep scheme wants more); ``p_in``/``p_out`` are the
+        loads averaged over the scheme's window (dyn/cm²).
+        """
+        if not dt > 0.0:
+            raise ValueError(f"time step must be > 0 s, got {dt!r}")
+        self._check(domain, interface, history)
+        t0 = time.perf_counter()
+        ch = self.channel
+        hist = tuple(levels(history[0], history[1:], scheme.old_levels))
+        fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, domain.eta, domain.velocity)
+        mass_coefficient = scheme.inertia * self.density / dt
+        key = (mass_coefficient,)
+        constant = self._constant.get(key) if self.constant_matrix else None
+        if constant is not None:
+            own = constant[0]
+        else:
+            a = None
+            if self.advection:
+                a = self._uu.trial_jets(scheme.extrapolate([s.u for s in hist]), values_only=True)
+                a[1] -= fields.wr
+            velocity, div = self._element_data(fields, mass_coefficient, a)
+            own = self._fill(velocity, div, div)
+        data = own
+        if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
+            if self._with_interface is None:
+                self._with_interface = np.empty_like(own)
+            data = self._with_interface  # kept for the run: the latest system's only (see solve)
+            np.copyto(data, own)
+            for slots, values in self._interface_terms(interface):
+                np.add.at(data, slots, values)
+        own_rhs = np.zeros(ch.ndofs)
+        h = scheme.history([s.u for s in hist])
+        own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply([(1.0, forms.mass_J, {"J": fields.J})], h)
+        own_rhs[: ch.nu] += p_in * fields.J_in * self._load_in + p_out * fields.J_out * self._load_out
+        rhs = own_rhs
+        if interface is not None:
+            rhs = own_rhs.copy()
+            rhs[: ch.nu] += ch.prolongation @ interface.rhs
+        fixed_values = np.zeros(ch.ndofs)
+        if self.wall == "prescribed":
+            fixed_values[: ch.nu] = ch.prolongation @ domain.velocity
+            fixed_values[ch.normal_r] = 0.0
+        self.assembly_s += time.perf_counter() - t0
+        return FluidSystem(data, own, rhs, own_rhs, self.fixed, fixed_values[self.fixed], fields, domain, scheme,
+                           dt, hist, p_in, p_out, interface)
+
+    # -- solving --------------------------------------------------------------
+    def solve(self, system: FluidSystem) -> Solution:
+        """Eliminate the Dirichlet DOFs and solve.
+
+        A constant matrix is factorized once per Δt; a changing one goes to
+        the :class:`~multilayer.numerics.linsolve.ReusingSolver` (a fresh factorization,
+        or GMRES preconditioned by an earlier one; the same system again (its
+        ``token``: sub-iterations change only the wall's values) reuses its own
+        factors).
+        """
+        t0 = time.perf_counter()
+        rhs = system.rhs[self.free]
+        if system.fixed_values.any():  # only a prescribed wall's ū_r is not zero: no block to build otherwise
+            rhs -= self._block_fd.matrix(system.data) @ system.fixed_values
+        self.assembly_s += time.perf_counter() - t0
+        x = np.zeros(self.channel.ndofs)
+        x[self.fixed] = system.fixed_values
+        if self.constant_matrix:
+            key = (system.scheme.inertia * self.density / system.dt,)
+            if key not in self._constant:
+                self._constant[key] = (system.own.copy(), factorize(self._block_ff.matrix(system.data), self.stats,
+                                                             self.solver))
+            x[self.free] = self._constant[key][1].solve(rhs)
+        else:
+            A = self._block_ff.matrix(system.data, keep=True)
+            x[self.free] = self._solver.solve(A, rhs, key=system.token)
+        return self.advance(system, x)
+
+    @property
+    def last_matrix(self) -> sp.spmatrix | None:
+        """The latest changing matrix solved (free DOFs), None before the first or for a constant matrix."""
+        return self._solver.last
+
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
+        """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode).
+
+        The matrix is shared, so :meth:`solve` reuses its factorization: a
+        sub-iterated coupler pays one factorization per step.
+        """
+        if self.wall != "prescribed":
+            raise ValueError(f"only a prescribed wall takes a wall velocity, not {self.wall!r}")
+        self._check_ends(wall_velocity)
+        values = np.zeros(self.channel.ndofs)
+        values[: self.channel.nu] = self.channel.prolongation @ wall_velocity
+        values[self.channel.normal_r] = 0.0
+        return attrs.evolve(system, fixed_values=values[self.fixed])
+
+    def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
+        """The new state from the solved x̄ = (ū, p̄): u^{n+1} from the scheme, v its wall trace."""
+        nu = self.channel.nu
+        u = system.scheme.new_level(mean[:nu], [s.u for s in system.history])
+        return Solution(mean, FluidState(u, mean[nu:].copy(), self.channel.wall_trace(u)))
+
+    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
+        """The fluid's own residual A x̄ − b on the wall's u_r rows, as a line vector.
+
+        It is minus the force the fluid exerts on the wall over the step,
+        tested with each line basis function (dyn/cm per unit depth).
+        """
+        residual = self.pattern.matrix(system.own) @ mean - system.own_rhs
+        return self.channel.restriction @ residual[: self.channel.nu]
+
+    # -- the energy identity ----------------------------------------------------
+    def identity(self, system: FluidSystem, solution: Solution, eta_old: np.ndarray,
+                 eta_new: np.ndarray) -> dict[str, float]:
+        """Every term of the step's energy identity, from quadrature of the fields and the load vectors.
+
+        Testing the step with x̄ (q_J(x) = ½ρ_f∫J|x|², E the scheme's stored energy):
+
+            E(J^{n+1}) − E(Jⁿ) + numerical + viscous − G + interface = work,
+            G = stored(q_{J^{n+1}−J_m}) − stored_old(q_{Jⁿ−J_m}) − Δt q_{∂_tJ}(ū)
+
+        G is the geometric remainder of the explicit domain (J_m the step's
+        geometry, ∂_t J = c/R its velocity); it vanishes when J_m = Jⁿ and
+        ∂_t J = (J^{n+1} − Jⁿ)/Δt, the kinematically coupled scheme's choice.
+        ``interface`` = Δt v̄·(R v̄ − r) is the power handed to the coupler's
+        interface terms; ``wall.work`` the power of a prescribed wall.
+
+        Where each term comes from: the kinetic, numerical and geometric
+        terms and the viscous dissipation by quadrature of the fields at the
+        assembly's points (:class:`~multilayer_plugins.channel.ledger.Quadrature`,
+        weights J^{n+1}, Jⁿ, J^{n+1} − J_m, ∂_t J — never the matrix that was
+        solved); the end fluxes from the assembled load vectors (the work of
+        the loads is their right-hand side tested with ū); the interface and
+        wall powers from the coupler's data.  docs/performance.md, "The ledger".
+        """
+        t0 = time.perf_counter()
+        ch, S, dt, fields = self.channel, system.scheme, system.dt, system.fields
+        quad = self._quadrature
+        us = [solution.state.u, *[s.u for s in system.history]]
+        ubar = solution.mean[: ch.nu]
+        R = ch.radius
+        J_old = 1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R
+        J_new = 1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R
+
+        def q(J):
+            return lambda x: quad.kinetic(J, x)
+
+        us = [quad.values(u) for u in us]  # the identity's quadratures are on values, linear in the DOFs
+        stored_new = S.stored(q(J_new), us)
+        stored_old = S.stored(q(J_old), us[1:])
+        geometric = (S.stored(q(J_new - fields.J), us) - S.stored(q(J_old - fields.J), us[1:])
+                     - dt * quad.kinetic(fields.dJdt, quad.values(ubar)))
+        strain = quad.strain_squared(ubar, fields)
+        # Q_in = −∫_Γin J u·n, Q_out = ∫_Γout J u·n: the load vectors are −∫ q·n on each end
+        q_in = fields.J_in * float(self._load_in @ ubar)
+        q_out = -fields.J_out * float(self._load_out @ ubar)
+        terms = {
+            "kinetic.fluid": stored_new,
+            "kinetic.fluid_before": stored_old,
+            "dissipation.viscous.fluid": 2.0 * self.viscosity * dt * strain,
+            "dissipation.numerical.fluid": S.numerical(q(fields.J), us),
+            "dissipation.geometric.fluid": -geometric,
+            "work.inlet": dt * system.p_in * q_in,
+            "work.outlet": -dt * system.p_out * q_out,
+        }
+        if self.wall == "prescribed":
+            A = self.pattern.matrix(system.data)
+            terms["work.wall"] = dt * float(system.fixed_values @ (A @ solution.mean - system.rhs)[self.fixed])
+        interface = 0.0
+        if system.interface is not None:
+            vbar = ch.wall_trace(ubar)
+            interface = dt * float(vbar @ (system.interface.matrix @ vbar - system.interface.rhs))
+        after = stored_new + terms["dissipation.numerical.fluid"] + terms["dissipation.viscous.fluid"] + interface
+        before = stored_old + terms["work.inlet"] + terms["work.outlet"] + terms.get("work.wall", 0.0) + geometric
+        terms["interface.power"] = interface
+        terms["a2.residual"] = after - before
+        terms["a2.scale"] = max(abs(after), abs(before), 1e-300)
+        self.ledger_s += time.perf_counter() - t0
+        return terms

@@ -1,0 +1,136 @@
+"""``monolithic``: the fluid and every layer of the wall in one linear system per step.
+
+The conforming layout (theory §3) makes this a sum: the thin layer's DOFs
+are the fluid's u_r DOFs on Γ, so adding the wall's equations to the
+fluid's on those rows (test functions q = ψ e_r) cancels the interface
+traction exactly; no traction is ever computed.  Both are solved for the
+scheme's test-level unknowns (ū, p̄, V̄) with ū_r = V̄ on Γ, so the
+kinematic condition holds at every level.
+
+The geometry is explicit: the domain of each step is predicted from the
+previous wall velocities, vⁿ for backward Euler, the linear extrapolation
+to the evaluation time for Crank–Nicolson and BDF2 (second order).  The
+energy identity is the sum of the wall's and the fluid's; what the
+predicted domain misses of the true one is the fluid's geometric remainder
+(``dissipation.geometric.fluid``).  No splitting error: this is the
+accuracy reference of the project, and its cost anchor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.coupling.contract import Coupler, StepReport
+from multilayer.coupling.kit import (
+    coupled_case_problems,
+    external_force,
+    fluid_groups,
+    predicted_domain,
+    window_loads,
+)
+from multilayer.coupling.structure import StructureStep, wall_energy
+from multilayer.numerics.assembly.pattern import Pattern
+from multilayer.numerics.linsolve import ReusingSolver
+from multilayer.numerics.timescheme import SCHEMES, scheme_param
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import CouplerPlugin
+from multilayer.scene.state import State
+from multilayer.wall.stack import LUMEN
+
+
+class Monolithic(Coupler):
+    name = "monolithic"
+    loads = ("inlet", "outlet", "external")
+    schemes = tuple(SCHEMES)
+
+    def check_case(self, case) -> list[str]:
+        return super().check_case(case) + coupled_case_problems(self.name, case)
+
+    def energy(self, setup, state: State) -> dict[str, float]:
+        return {**wall_energy(setup.stack, self.scheme, state),
+                "kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+
+    @staticmethod
+    def numbering(setup) -> np.ndarray:
+        """The unknown of the monolithic system of each wall DOF.
+
+        The fluid's unknowns come first; a wall DOF on the lumen line's radial
+        component is the fluid's wall u_r there, every other wall DOF follows.
+        """
+        wall, fluid = setup.wall, setup.fluid
+        nf = fluid.ndofs
+        glob = np.full(wall.ndofs, -1, dtype=np.int64)
+        glob[wall.line_dofs(LUMEN)] = fluid.interface_dofs
+        rest = np.flatnonzero(glob < 0)
+        glob[rest] = nf + np.arange(rest.size)
+        return glob
+
+    def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        S, dt, fluid, wall, stack = self.scheme, setup.dt, setup.fluid, setup.wall, setup.stack
+        R = wall.restrictions[LUMEN]
+        structure = StructureStep(stack, S, dt, setup.stats("wall"))
+        glob = self.numbering(setup)
+        n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
+        A_wall = sp.coo_matrix(structure.matrix())
+        solver = ReusingSolver(setup.stats("monolithic"), setup.case.solver, setup.case.reuse)
+        layout = None
+        for step, t0, t1 in setup.windows(state.n):
+            loads = window_loads(setup, S, t0, t1)
+            history = state.history(S.old_levels)
+            domain = predicted_domain(S, history, dt)
+            system = fluid.system([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"])
+            A_f, b_f, fixed_f, values_f = fluid.matrix(system)
+            if layout is None or not layout.fits(A_f):
+                layout = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
+            forces = {"external": external_force(setup, loads["external"])}
+            data = layout.fill(A_f.data, A_wall.data)
+            b = np.zeros(n)
+            b[: fluid.ndofs] = b_f
+            np.add.at(b, glob, structure.rhs(history, forces))
+            x = np.zeros(n)
+            x[fixed_f] = values_f
+            rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
+            x[layout.free] = solver.solve(layout.free_free.matrix(data, keep=True), rhs)
+            # each part takes back its share of the solution
+            solution = fluid.advance(system, x[: fluid.ndofs])
+            w = structure.finish(history, x[glob], forces)
+            eta_new = R @ w.wall.d
+            terms = fluid.identity(system, solution, state.eta, eta_new)
+            state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
+                               v=fluid.wall_velocity(solution.state), eta=eta_new)
+            stored_f, work_f, dissipation_f = fluid_groups(terms)
+            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, {**w.dissipation, **dissipation_f})
+
+
+class Layout:
+    """The monolithic system's sparsity, fixed for the run: the fluid's pattern and the wall's, summed.
+
+    A step fills it with the pattern's filler (``np.add.at``) and takes the free/fixed blocks as
+    index maps (:class:`multilayer.numerics.assembly.pattern.Pattern`), like the fluid's own step.
+    """
+
+    def __init__(self, A_f: sp.csr_matrix, A_wall: sp.coo_matrix, glob: np.ndarray, fixed: np.ndarray, n: int):
+        self.indptr, self.indices = A_f.indptr.copy(), A_f.indices.copy()  # the fluid's pattern
+        f = A_f.tocoo()
+        fluid_entries = (f.row.astype(np.int64), f.col.astype(np.int64))
+        wall_entries = (glob[A_wall.row], glob[A_wall.col])
+        self.pattern = Pattern((n, n), [fluid_entries, wall_entries])
+        self.fill = self.pattern.filler([self.pattern.slots(*fluid_entries), self.pattern.slots(*wall_entries)])
+        self.fixed = np.unique(fixed)
+        self.free = np.setdiff1d(np.arange(n), self.fixed)
+        self.free_free = self.pattern.block(self.free, self.free)
+        self.free_fixed = self.pattern.block(self.free, self.fixed)
+
+    def fits(self, A_f: sp.csr_matrix) -> bool:
+        """True when the fluid's matrix still has the pattern this layout was built for."""
+        return np.array_equal(A_f.indptr, self.indptr) and np.array_equal(A_f.indices, self.indices)
+
+
+@hookimpl
+def multilayer_couplers():
+    return [CouplerPlugin(name="monolithic", factory=Monolithic, params=(scheme_param(tuple(SCHEMES)),),
+                          doc="Fluid and wall in one linear system per step (geometry explicit); the accuracy "
+                              "reference.")]

@@ -1,0 +1,27 @@
+"""``navier-stokes``: incompressible Navier–Stokes in the channel (theory §6, step A2).
+
+ALE on the fixed reference channel, skew-symmetric advection with the
+domain velocity of the structure step, dynamic pressure at inlet and
+outlet.  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
+class with the advection terms off.
+"""
+
+from __future__ import annotations
+
+from multilayer_plugins.channel import PARAMS, NavierStokes
+
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import FluidPlugin
+
+
+@hookimpl
+def multilayer_fluids() -> list[FluidPlugin]:
+    """The ``navier-stokes`` fluid."""
+    return [
+        FluidPlugin(
+            name="navier-stokes",
+            factory=NavierStokes,
+            params=PARAMS,
+            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection.",
+        )
+    ]

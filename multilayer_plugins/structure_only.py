@@ -1,0 +1,54 @@
+"""``structure-only``: the wall alone (no fluid), every layer of the stack, every step.
+
+Loads: the external pressure P_e on the outer surface and a prescribed
+pressure on the lumen line; or free vibration from initial profiles.  Any
+scheme of :mod:`multilayer.numerics.timescheme`; the matrix is factorized once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from multilayer.coupling.contract import Coupler, StepReport
+from multilayer.coupling.kit import external_force, window_loads
+from multilayer.coupling.structure import StructureStep, wall_energy
+from multilayer.numerics.timescheme import SCHEMES, scheme_param
+from multilayer.plugin.hookspecs import hookimpl
+from multilayer.plugin.records import CouplerPlugin
+from multilayer.scene.state import State
+
+
+class StructureOnly(Coupler):
+    name = "structure-only"
+    loads = ("external", "interface")
+    schemes = tuple(SCHEMES)
+
+    def check_case(self, case) -> list[str]:
+        problems = super().check_case(case)
+        if case.fluid is not None:
+            problems.append("structure-only runs a wall without fluid: set fluid = \"none\", "
+                            "or choose the coupler 'kinematic-splitting'")
+        if not case.layers:
+            problems.append("structure-only needs at least one layer in [[layers]]")
+        return problems
+
+    def energy(self, setup, state: State) -> dict[str, float]:
+        return wall_energy(setup.stack, self.scheme, state)
+
+    def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
+        S, wall = self.scheme, setup.wall
+        step = StructureStep(setup.stack, S, setup.dt, setup.stats("wall"), setup.case.solver)
+        unit_lumen = wall.line_load(0)
+        for n, t0, t1 in setup.windows(state.n):
+            loads = window_loads(setup, S, t0, t1)
+            forces = {"external": external_force(setup, loads["external"]),
+                      "interface": loads["interface"] * unit_lumen}
+            a = step.step(state, forces)
+            state = state.then(S.old_levels, n=n + 1, t=t1, wall=a.wall)
+            yield state, StepReport(a.stored, a.work, a.dissipation)
+
+
+@hookimpl
+def multilayer_couplers():
+    return [CouplerPlugin(name="structure-only", factory=StructureOnly, params=(scheme_param(tuple(SCHEMES)),),
+                          doc="The wall alone: all layers, any time scheme, factorized once.")]
