@@ -32,10 +32,16 @@ import numpy as np
 import scipy
 from skfem import BilinearForm, asm
 
-from multilayer.fluid.contract import Domain, Interface
+from multilayer.fluid.contract import Domain, FluidSetup, Interface
+from multilayer.functions.loads import ConstantPressure
 from multilayer.numerics.linsolve import BACKENDS
 from multilayer.numerics.timescheme import SCHEMES
 from multilayer_plugins.channel import NavierStokes, Stokes
+from multilayer_plugins.planar import Planar
+from multilayer_plugins.pressure import PressureEnd
+
+#: P_in = 1000 dyn/cm², P_out = 0
+ENDS = {"inlet": PressureEnd(ConstantPressure(1.0e3)), "outlet": PressureEnd(ConstantPressure(0.0))}
 
 L, R, MU, RHO, DT = 6.0, 0.5, 0.035, 1.0, 1e-4
 THIN_MASS = 1.1 * 0.1  # ρ₁h (g/cm²) of the dummy thin layer
@@ -63,7 +69,7 @@ def line_mass(v, psi, w):
 
 def ns_coupled(nz: int, nr: int, order: int, solver: str, steps: int) -> tuple[int, list[dict]]:
     fluid = NavierStokes(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, grading=1.0, wall="coupled", solver=solver)
+    fluid.setup(FluidSetup(Planar(), L, R, nz, nr, order, 1.0, wall="coupled", solver=solver, ends=ENDS))
     M = THIN_MASS * asm(line_mass, fluid.line.basis)
     robin = M / DT
     z = fluid.line.z
@@ -73,7 +79,7 @@ def ns_coupled(nz: int, nr: int, order: int, solver: str, steps: int) -> tuple[i
     for n in range(steps):
         v_half = 2.0 * np.sin(np.pi * z / L) * np.cos(0.3 * n)
         v_half[fluid.line.end_dofs] = 0.0
-        solution, phases = timed_step(fluid, [state], Domain(eta, v_half), BE, DT, 1.0e3, 0.0,
+        solution, phases = timed_step(fluid, [state], Domain(eta, v_half), BE, DT, (0.0, DT),
                                       Interface(robin, robin @ v_half), eta, eta + DT * v_half)
         state, eta = solution.state, eta + DT * v_half
         timings.append(phases)
@@ -82,12 +88,12 @@ def ns_coupled(nz: int, nr: int, order: int, solver: str, steps: int) -> tuple[i
 
 def stokes_rigid(nz: int, nr: int, order: int, solver: str, steps: int) -> tuple[int, list[dict]]:
     fluid = Stokes(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, grading=1.0, wall="rigid", solver=solver)
+    fluid.setup(FluidSetup(Planar(), L, R, nz, nr, order, 1.0, wall="rigid", solver=solver, ends=ENDS))
     state = fluid.initial_state()
     still = Domain.still(fluid.line.ndofs)
     timings = []
     for _ in range(steps):
-        solution, phases = timed_step(fluid, [state], still, BE, DT, 1.0e3, 0.0)
+        solution, phases = timed_step(fluid, [state], still, BE, DT, (0.0, DT))
         state = solution.state
         timings.append(phases)
     assert fluid.discrete.stats.factorizations == 1

@@ -50,9 +50,13 @@ from typing import Any
 
 import attrs
 
+from multilayer.case.casefile import validate_data
+from multilayer.geometry.contract import Geometry
+from multilayer.geometry.spaces import make_line_space
 from multilayer.plugin.problems import CaseError, check_params, check_value, describe
 from multilayer.plugin.records import LayerPlugin, Param
 from multilayer.plugin.registry import Registry
+from multilayer.run.loop import run_case
 from multilayer.wall.checks import (
     abstract_problem,
     essential_problems,
@@ -61,6 +65,7 @@ from multilayer.wall.checks import (
     type_problem,
 )
 from multilayer.wall.layer import Layer
+from multilayer.wall.stack import WallSpace
 
 __all__ = ["CHECKS", "CheckResult", "LayerConformance", "assert_layer_conforms", "check_layer", "example_params"]
 
@@ -196,17 +201,15 @@ def _check_schema(subject: _Subject, workdir: Path) -> list[str]:
     return problems
 
 
-def _small_spaces(layer: Layer) -> list[tuple[int, Any]]:
+def _small_spaces(layer: Layer, geometry: Geometry) -> list[tuple[int, Any]]:
     """(order, space) for orders 1 and 2: a line of :data:`SMALL` cells, or the band of a small wall."""
-    from multilayer.geometry.spaces import make_line_space
-    from multilayer.wall.stack import WallSpace
-
     spaces = []
     for order in (1, 2):
         if layer.thin:
-            spaces.append((order, make_line_space(SMALL["length"], SMALL["nz"], order, SMALL["radius"])))
+            spaces.append((order, make_line_space(SMALL["length"], SMALL["nz"], order, SMALL["radius"], geometry)))
         else:
-            wall = WallSpace.build([layer], SMALL["length"], SMALL["radius"], SMALL["nz"], order, [SMALL["band_cells"]])
+            wall = WallSpace.build([layer], geometry, SMALL["length"], SMALL["radius"], SMALL["nz"], order,
+                                   [SMALL["band_cells"]])
             spaces.append((order, wall.bands[0]))
     return spaces
 
@@ -216,7 +219,8 @@ def _on_small_spaces(subject: _Subject, check: Callable[[Layer, Any], list[str]]
     if layer is None:
         return subject.unbuilt()
     problems = []
-    for order, space in _small_spaces(layer):
+    planar = subject.registry.get("geometry", "planar").record.factory()  # the kit's small scene is planar
+    for order, space in _small_spaces(layer, planar):
         try:
             found = check(layer, space)
         except Exception as exc:  # the plugin's own code
@@ -260,8 +264,6 @@ def scene(name: str, params: Mapping[str, Any], thin: bool) -> dict[str, Any]:
 
 
 def _check_coupled_run(subject: _Subject, workdir: Path) -> list[str]:
-    from multilayer.case.casefile import validate_data
-    from multilayer.run.loop import run_case
 
     layer, _ = subject.built()
     if layer is None:

@@ -65,7 +65,7 @@ class DirichletNeumann(Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state),
-                "kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta)}
 
     def accelerator(self):
         """The update of the interface velocity between iterations (implicit only)."""
@@ -84,7 +84,7 @@ class DirichletNeumann(Coupler):
             history = state.history(S.old_levels)
             domain = predicted_domain(S, history, dt)
             x = domain.velocity  # the wall velocity the fluid sees first
-            system = fluid.system([s.fluid for s in history], domain, S, dt, loads["inlet"], loads["outlet"])
+            system = fluid.system([s.fluid for s in history], domain, S, dt, (t0, t1))
             if accelerate is not None:
                 accelerate.start()
             iterations, residual = 0, 0.0

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from multilayer.coupling.contract import Coupler, StepReport
-from multilayer.coupling.kit import fluid_groups, window_loads
+from multilayer.coupling.kit import fluid_groups
 from multilayer.fluid.contract import Domain
 from multilayer.numerics.timescheme import SCHEMES, scheme_param
 from multilayer.plugin.hookspecs import hookimpl
@@ -50,21 +50,20 @@ class FluidOnly(Coupler):
         return np.asarray(setup.case.loads.wall_motion(t=t, z=line.z), dtype=float) * np.ones(line.ndofs)
 
     def energy(self, setup, state: State) -> dict[str, float]:
-        return {"kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+        return {**setup.fluid.energy(state.fluid, state.eta)}
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         S, dt, fluid = self.scheme, setup.dt, setup.fluid
         moving = setup.case.loads.wall_motion is not None
         still = Domain.still(fluid.line.ndofs)
         for n, t0, t1 in setup.windows(state.n):
-            loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
             if moving:
                 etas = [self._eta(setup, t1), *[x.eta for x in history]]
                 domain = Domain(S.geometry(etas), S.difference(etas) / dt)
             else:
                 etas, domain = [still.eta, still.eta], still
-            sol, f = fluid.step([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"],
+            sol, f = fluid.step([x.fluid for x in history], domain, S, dt, (t0, t1),
                                 eta_old=etas[1], eta_new=etas[0])
             state = state.then(S.old_levels, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
             stored, work, dissipation = fluid_groups(f)

@@ -74,7 +74,7 @@ class KinematicSplitting(Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state, LUMEN),
-                "kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta)}
 
     def traction(self, state: State) -> np.ndarray:
         """τ̃: the fluid's force on the thin layer extrapolated from the last steps (0 at the start)."""
@@ -108,7 +108,7 @@ class KinematicSplitting(Coupler):
             interface = Interface(robin, robin @ v_mean_a1 - tau)
             domain = Domain(S.geometry([eta_new, state.eta]), v_mean_a1)
             history = [x.fluid for x in state.history(S.old_levels)]
-            sol, f = fluid.step(history, domain, S, dt, loads["inlet"], loads["outlet"], interface,
+            sol, f = fluid.step(history, domain, S, dt, (t0, t1), interface,
                                 state.eta, eta_new)
             v_new = fluid.wall_velocity(sol.state)
             v_bar = S.average([v_new, state.v])  # ū on Γ, the thin layer's test-level velocity

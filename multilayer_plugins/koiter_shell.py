@@ -14,12 +14,12 @@ from __future__ import annotations
 from typing import Any
 
 import attrs
-from multilayer_plugins.thin_shell import KoiterFamilyLayer, mass_params
 
 from multilayer.geometry.spaces import LineSpace
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import LayerPlugin, Param
 from multilayer.wall.layer import LayerMatrices, ThinLayer
+from multilayer_plugins.thin_shell import KoiterFamilyLayer, mass_params
 
 _poisson = [attrs.validators.gt(-1.0), attrs.validators.lt(0.5)]
 
@@ -32,7 +32,8 @@ class KoiterShell(ThinLayer):
     >>> shell = KoiterShell(density=1.1, thickness=0.1, young=1e6, poisson=0.3)
     >>> shell.at_radius(0.5) == KoiterFamilyLayer.from_young_poisson(1.1, 0.1, 1e6, 0.3, 0.5)
     True
-    >>> shell.forms(make_line_space(6.0, 4, 1, 0.5)).stiffness.shape
+    >>> from multilayer_plugins.planar import Planar
+    >>> shell.forms(make_line_space(6.0, 4, 1, 0.5, Planar())).stiffness.shape
     (5, 5)
     """
 

@@ -51,7 +51,7 @@ class Monolithic(Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state),
-                "kinetic.fluid": setup.fluid.kinetic_energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta)}
 
     @staticmethod
     def numbering(setup) -> np.ndarray:
@@ -81,7 +81,7 @@ class Monolithic(Coupler):
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
             domain = predicted_domain(S, history, dt)
-            system = fluid.system([x.fluid for x in history], domain, S, dt, loads["inlet"], loads["outlet"])
+            system = fluid.system([x.fluid for x in history], domain, S, dt, (t0, t1))
             A_f, b_f, fixed_f, values_f = fluid.matrix(system)
             if layout is None or not layout.fits(A_f):
                 layout = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)

@@ -8,10 +8,9 @@ class with the advection terms off.
 
 from __future__ import annotations
 
-from multilayer_plugins.channel import PARAMS, NavierStokes
-
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import FluidPlugin
+from multilayer_plugins.channel import PARAMS, NavierStokes
 
 
 @hookimpl

@@ -6,10 +6,9 @@ included: it belongs to the moving domain, not to advection.
 
 from __future__ import annotations
 
-from multilayer_plugins.channel import PARAMS, Stokes
-
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import FluidPlugin
+from multilayer_plugins.channel import PARAMS, Stokes
 
 
 @hookimpl

@@ -47,7 +47,8 @@ def lumped(M: sp.spmatrix) -> np.ndarray:
     """Row sums of a mass matrix: the lumped (Gauss–Lobatto) mass, positive for 1D P1 and P2.
 
     >>> from multilayer.geometry.spaces import make_line_space
-    >>> lumped(asm(mass, make_line_space(1.0, 2, 2, 0.5).basis)).round(4).tolist()
+    >>> from multilayer_plugins.planar import Planar
+    >>> lumped(asm(mass, make_line_space(1.0, 2, 2, 0.5, Planar()).basis)).round(4).tolist()
     [0.0833, 0.1667, 0.0833, 0.3333, 0.3333]
     """
     return np.asarray(M.sum(axis=1)).ravel()
@@ -70,7 +71,8 @@ def bilaplace(space: LineSpace, M: sp.spmatrix | None = None, Kz: sp.spmatrix | 
     (1, −4, 6, −4, 1)/h³ on the interior:
 
     >>> from multilayer.geometry.spaces import make_line_space
-    >>> B = bilaplace(make_line_space(6.0, 6, 1, 0.5)).toarray()
+    >>> from multilayer_plugins.planar import Planar
+    >>> B = bilaplace(make_line_space(6.0, 6, 1, 0.5, Planar())).toarray()
     >>> B[3, 1:6].round(12).tolist()
     [1.0, -4.0, 6.0, -4.0, 1.0]
     """
@@ -89,7 +91,8 @@ class LineOperators:
     """The three matrices every Koiter-family form is a combination of.
 
     >>> from multilayer.geometry.spaces import make_line_space
-    >>> ops = LineOperators.assemble(make_line_space(1.0, 4, 1, 0.5))
+    >>> from multilayer_plugins.planar import Planar
+    >>> ops = LineOperators.assemble(make_line_space(1.0, 4, 1, 0.5, Planar()))
     >>> float(ops.mass.sum()), float(abs(ops.laplace.sum()) < 1e-12)
     (1.0, 1.0)
     """
@@ -143,7 +146,8 @@ class KoiterFamilyLayer(ThinLayer):
 
     >>> from multilayer.geometry.spaces import make_line_space
     >>> layer = KoiterFamilyLayer(density=1.1, thickness=0.1, C1=2.0)
-    >>> m = layer.forms(make_line_space(6.0, 3, 1, 0.5))
+    >>> from multilayer_plugins.planar import Planar
+    >>> m = layer.forms(make_line_space(6.0, 3, 1, 0.5, Planar()))
     >>> round(float(m.mass.sum()), 12), m.stiffness.shape, layer.long_wave_stiffness()
     (0.66, (4, 4), 0.0)
     """

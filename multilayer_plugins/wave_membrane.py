@@ -6,10 +6,9 @@ writes the tension C1 as c²).  Ends pinned: η(0) = η(L) = 0.
 
 from __future__ import annotations
 
-from multilayer_plugins.thin_shell import KoiterFamilyLayer, mass_params
-
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import LayerPlugin, Param
+from multilayer_plugins.thin_shell import KoiterFamilyLayer, mass_params
 
 
 def wave_membrane(density: float, thickness: float, tension: float) -> KoiterFamilyLayer:

@@ -11,6 +11,10 @@ import attrs
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, FluidPlugin, LayerPlugin, Param
 
+# the real geometry and pressure ends: every case has a geometry and two ends, and these have no model behind them
+from multilayer_plugins.planar import multilayer_geometries  # noqa: F401
+from multilayer_plugins.pressure import multilayer_boundaries  # noqa: F401
+
 DENSITY = Param("density", "ρ", "g/cm³", gt=0.0, doc="density")
 THICKNESS = Param("thickness", "h", "cm", gt=0.0, doc="thickness")
 YOUNG = Param("young", "E", "dyn/cm²", gt=0.0, doc="Young's modulus")

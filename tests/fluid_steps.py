@@ -2,10 +2,34 @@
 
 import numpy as np
 
-from multilayer.fluid.contract import Domain, Interface
+from multilayer.boundary.contract import BoundaryCondition, EndTraction
+from multilayer.fluid.contract import Domain, FluidSetup, Interface
 from multilayer.numerics.timescheme import SCHEMES
+from multilayer_plugins.planar import Planar
 
 BE = SCHEMES["backward-euler"]
+
+
+class Given(BoundaryCondition):
+    """An end whose pressure the test sets before each step (p̄ as given, no resistance)."""
+
+    def __init__(self):
+        self.pressure = 0.0
+
+    def traction(self, window, dt, scheme, history) -> EndTraction:
+        return EndTraction(self.pressure)
+
+
+def setup_fluid(fluid, length, radius, nz, nr, **options):
+    """``fluid.setup`` on the planar channel L × R, each end a :class:`Given` pressure (0 until set)."""
+    ends = {"inlet": Given(), "outlet": Given()}
+    return fluid.setup(FluidSetup(Planar(), length, radius, nz, nr, ends=ends, **options))
+
+
+def given(fluid, p_in=0.0, p_out=0.0):
+    """Set the pressures of the ends of a fluid set up by :func:`setup_fluid` for the next steps."""
+    ends = fluid.discrete.ends.conditions
+    ends["inlet"].pressure, ends["outlet"].pressure = p_in, p_out
 
 
 def fluid_step(fluid, state, dt, eta=None, v=None, p_in=0.0, p_out=0.0, robin_mass=None, scheme=BE):
@@ -20,5 +44,6 @@ def fluid_step(fluid, state, dt, eta=None, v=None, p_in=0.0, p_out=0.0, robin_ma
     interface = None
     if robin_mass is not None:
         interface = Interface((scheme.inertia / dt) * robin_mass, -(robin_mass @ scheme.history([v])) / dt)
-    solution, terms = fluid.step([state], Domain(eta, v), scheme, dt, p_in, p_out, interface, eta, eta + dt * v)
+    given(fluid, p_in, p_out)
+    solution, terms = fluid.step([state], Domain(eta, v), scheme, dt, (0.0, dt), interface, eta, eta + dt * v)
     return solution.state, terms

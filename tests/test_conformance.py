@@ -17,6 +17,7 @@ from multilayer.testing import (
     example_params,
 )
 from multilayer.wall.stack import WallSpace
+from multilayer_plugins.planar import Planar
 
 
 class TestWaveMembrane(LayerConformance):
@@ -151,7 +152,7 @@ def test_sliding_ends_of_the_docs_hold_only_d_z(tmp_path):
     path.write_text(THICK_EXAMPLE)
     module = import_plugin(str(path))
     band = module.KelvinVoigtBand(1.1, 0.1, 7.5e5, 0.45, 0.0, "sliding")
-    space = WallSpace.build([band], 6.0, 0.5, 4, 2, [2]).bands[0]
+    space = WallSpace.build([band], Planar(), 6.0, 0.5, 4, 2, [2]).bands[0]
     held = band.essential_dofs(space)
     z_dofs, r_dofs = space.basis.split_indices()
     ends = np.union1d(space.side_dofs("z=0"), space.side_dofs("z=L"))

@@ -17,6 +17,7 @@ from multilayer.numerics.assembly.batched import BatchedForm, SkewPart
 from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.planar import Planar
 
 
 @pytest.mark.parametrize(
@@ -34,7 +35,7 @@ def test_doctests(module):
 
 
 def deformed(order):
-    ch = Channel.build(2.0, 0.5, nz=4, nr=3, order=order, grading=1.5)
+    ch = Channel.build(Planar(), 2.0, 0.5, nz=4, nr=3, order=order, grading=1.5)
     z = ch.line.z
     eta = 0.1 * np.sin(np.pi * z / 2.0) * (1.0 + z)
     v = 0.3 * np.sin(2.0 * np.pi * z / 2.0)
@@ -106,7 +107,7 @@ def test_advection_is_skew_and_the_rest_symmetric():
 
 def test_ale_fields_match_the_map():
     """J, g_z, g_r of theory §2 for η = c z (η_z = c), at the quadrature points."""
-    ch = Channel.build(2.0, 0.5, nz=2, nr=2, order=2)
+    ch = Channel.build(Planar(), 2.0, 0.5, nz=2, nr=2, order=2)
     c = 0.05
     f = ALEFields.at(ch, c * ch.line.z, np.ones(ch.line.ndofs))
     zq = np.asarray(ch.velocity.global_coordinates())[0]
@@ -124,7 +125,7 @@ def test_gradient_of_a_physical_field():
     With η = c z the field is P2 on Ω̂ (u_z = r = (1 + c ẑ/R) r̂), so the
     test sees only the map, not an interpolation error.
     """
-    ch = Channel.build(2.0, 0.5, nz=3, nr=3, order=2, grading=1.3)
+    ch = Channel.build(Planar(), 2.0, 0.5, nz=3, nr=3, order=2, grading=1.3)
     c, R = 0.08, 0.5
     f = ALEFields.at(ch, c * ch.line.z, 0 * ch.line.z)
     u = ch.interpolate(lambda z, rh: ((1 + c * z / R) * rh, z))

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from fluid_steps import BE
+from fluid_steps import BE, given, setup_fluid
 
 from multilayer.fluid.contract import Domain, Interface
 from multilayer_plugins.channel import NavierStokes, forms
@@ -13,7 +13,7 @@ from multilayer_plugins.channel.step import Solution
 def moving_step(seed=0):
     """A Navier–Stokes step on a deformed, moving channel with a Robin wall, after one step from a random flow."""
     fluid = NavierStokes(density=1.0, viscosity=0.035)
-    step = fluid.setup(length=2.0, radius=0.5, nz=8, nr=3)
+    step = setup_fluid(fluid, 2.0, 0.5, nz=8, nr=3)
     rng = np.random.default_rng(seed)
     n = fluid.line.ndofs
     z = fluid.line.z
@@ -24,7 +24,8 @@ def moving_step(seed=0):
     M = 0.11 * np.eye(n)
     interface = Interface(M / dt, M @ v / dt)
     domain = Domain(eta + 0.5 * dt * v, v)
-    system = fluid.system([state], domain, BE, dt, p_in=50.0, p_out=10.0, interface=interface)
+    given(fluid, p_in=50.0, p_out=10.0)
+    system = fluid.system([state], domain, BE, dt, (0.0, dt), interface=interface)
     return fluid, step, system, eta, eta + dt * v, rng
 
 
@@ -36,8 +37,8 @@ def test_quadrature_matches_scikit_fem():
     strain = float(forms.strain_squared.assemble(ch.velocity, u=ch.velocity.interpolate(u), **fields.forms_kwargs()))
     assert step._quadrature.strain_squared(u, fields) == pytest.approx(strain, rel=1e-13)
     q_in, q_out = end_fluxes(ch, fields, u)
-    assert fields.J_in * float(step._load_in @ u) == pytest.approx(q_in, rel=1e-12)
-    assert -fields.J_out * float(step._load_out @ u) == pytest.approx(q_out, rel=1e-12)
+    assert fields.J_in * float(step.ends.loads["inlet"] @ u) == pytest.approx(q_in, rel=1e-12)
+    assert -fields.J_out * float(step.ends.loads["outlet"] @ u) == pytest.approx(q_out, rel=1e-12)
 
 
 def test_fluid_identity_closes_and_detects_a_wrong_term_or_a_wrong_solve():

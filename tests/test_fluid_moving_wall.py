@@ -15,7 +15,7 @@ default Krylov reuse both hold to what the solver tolerance 1e-12 allows
 
 import numpy as np
 import pytest
-from fluid_steps import fluid_step
+from fluid_steps import fluid_step, setup_fluid
 from skfem import BilinearForm, asm
 
 from multilayer.numerics.linsolve import Reuse
@@ -44,7 +44,7 @@ def line_mass(v, psi, w):
 
 def march_prescribed(cls, order, nz, nr, dt, steps, reuse=Reuse()):
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, wall="prescribed", reuse=reuse)
+    setup_fluid(fluid, L, R, nz=nz, nr=nr, order=order, wall="prescribed", reuse=reuse)
     ones = np.asarray(asm(line_mass, fluid.line.basis).sum(axis=0)).ravel()  # ∫ψᵢ: area of a line vector
     state, t, records = fluid.initial_state(), 0.0, []
     for _ in range(steps):
@@ -110,7 +110,7 @@ def test_snapshot_is_in_the_deformed_geometry():
 def coupled_run(cls, order, thin_mass, steps=6, dt=2e-3):
     """Coupled mode with a dummy thin layer: Robin mass M = ρ₁h∫vψ, v^{n+½} given, η advanced by it."""
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=6, nr=3, order=order, wall="coupled")
+    setup_fluid(fluid, L, R, nz=6, nr=3, order=order, wall="coupled")
     M = thin_mass * asm(line_mass, fluid.line.basis)
     z = fluid.line.z
     eta = 0.02 * np.sin(np.pi * z / L)
@@ -143,7 +143,7 @@ def test_a_heavy_thin_layer_moves_as_prescribed():
     The gap is ∝ 1/(ρ₁h): measured 1.16e-5 and 1.16e-6 (u, relative) at ρ₁h = 1e3 and 1e4 g/cm².
     """
     prescribed = NavierStokes(RHO, MU)
-    prescribed.setup(L, R, nz=6, nr=3, order=2, wall="prescribed")
+    setup_fluid(prescribed, L, R, nz=6, nr=3, order=2, wall="prescribed")
     gaps = []
     for thin_mass in (1e3, 1e4):
         _, out = coupled_run(NavierStokes, 2, thin_mass=thin_mass, steps=2)

@@ -8,7 +8,7 @@ Re 0.057, 8.97e-5 at Re 0.57) and measurable at Re 286 (4.03e-2).
 
 import numpy as np
 import pytest
-from fluid_steps import fluid_step
+from fluid_steps import fluid_step, setup_fluid
 
 from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
 from multilayer_plugins.channel.probes import l2_error
@@ -18,7 +18,7 @@ L, R, MU, RHO, T0 = 2.0, 0.5, 0.035, 1.0, 0.02
 
 def final_velocity(cls, a, steps=20):
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=8, nr=4, order=2, wall="prescribed")
+    setup_fluid(fluid, L, R, nz=8, nr=4, order=2, wall="prescribed")
     state, t, dt = fluid.initial_state(), 0.0, T0 / steps
 
     def law(t, z):

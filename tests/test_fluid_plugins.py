@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from fluid_steps import BE, fluid_step
+from fluid_steps import BE, fluid_step, setup_fluid
 from skfem import BilinearForm, asm
 
 from multilayer.fluid.contract import Domain, Fluid, Interface
@@ -33,7 +33,7 @@ def test_rejects_non_positive_parameters(kwargs):
 
 def setup(wall, order=2):
     fluid = NavierStokes(1.0, 0.035)
-    fluid.setup(1.0, 0.5, nz=2, nr=2, order=order, wall=wall)
+    setup_fluid(fluid, 1.0, 0.5, nz=2, nr=2, order=order, wall=wall)
     return fluid
 
 
@@ -63,7 +63,7 @@ def test_wall_mode_errors():
     with pytest.raises(ValueError, match="interface line"):
         fluid_step(setup("coupled"), state, 1e-3, eta=np.zeros(3))
     with pytest.raises(ValueError, match="5 × 5"):
-        setup("coupled").step([state], Domain.still(5), BE, 1e-3, interface=Interface(np.eye(3), np.zeros(3)))
+        setup("coupled").step([state], Domain.still(5), BE, 1e-3, (0.0, 1e-3), interface=Interface(np.eye(3), np.zeros(3)))
     with pytest.raises(ValueError, match="closes the channel"):
         fluid_step(setup("coupled"), state, 1e-3, eta=-np.ones(5))
     with pytest.raises(ValueError, match="time step"):
@@ -71,7 +71,7 @@ def test_wall_mode_errors():
     with pytest.raises(RuntimeError, match="setup"):
         Stokes(1.0, 1.0).initial_state()
     with pytest.raises(ValueError, match="order"):
-        Stokes(1.0, 1.0).setup(1.0, 0.5, 2, 2, order=3)
+        setup_fluid(Stokes(1.0, 1.0), 1.0, 0.5, 2, 2, order=3)
 
 
 def test_probes_on_a_deformed_channel():

@@ -14,7 +14,7 @@ Re 0.85, 4.41e-5 at Re 0.0085).
 
 import numpy as np
 import pytest
-from fluid_steps import fluid_step
+from fluid_steps import fluid_step, setup_fluid
 
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
@@ -29,7 +29,7 @@ def poiseuille(dp):
 def steady(cls, order, nz, nr, dp, steps=12):
     """March with Δt = 1000 s from rest: each step divides the distance to steady state by ~350."""
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, wall="rigid")
+    setup_fluid(fluid, L, R, nz=nz, nr=nr, order=order, wall="rigid")
     state = fluid.initial_state()
     for _ in range(steps):
         state, _ = fluid_step(fluid, state, 1e3, p_in=dp, p_out=0.0)
@@ -80,7 +80,7 @@ def test_poiseuille_in_a_dilated_channel():
     """
     c, dp = 0.1, 10.0
     fluid = Stokes(RHO, MU)
-    fluid.setup(L, R, nz=4, nr=4, order=2, wall="prescribed")
+    setup_fluid(fluid, L, R, nz=4, nr=4, order=2, wall="prescribed")
     eta, still = np.full(fluid.line.ndofs, c), np.zeros(fluid.line.ndofs)
     state = fluid.initial_state()
     for _ in range(12):

@@ -25,6 +25,7 @@ and t = −Δt.
 
 import numpy as np
 import pytest
+from fluid_steps import given, setup_fluid
 
 from multilayer.fluid.contract import Domain
 from multilayer.numerics.timescheme import SCHEMES
@@ -60,13 +61,14 @@ def run(cls, order, nz, nr, dt, steps, discrete_reference, G=10.0, scheme="backw
     exact = womersley(G, lam)
     S = SCHEMES[scheme]
     fluid = cls(RHO, MU)
-    fluid.setup(L, R, nz=nz, nr=nr, order=order, wall="rigid")
+    setup_fluid(fluid, L, R, nz=nz, nr=nr, order=order, wall="rigid")
     still = Domain.still(fluid.line.ndofs)
     # the exact solution at t = 0 and, for a two-step scheme, at t = −Δt: no start-up error
     history, t = [fluid.initial_state(exact(0.0)), fluid.initial_state(exact(-dt))], 0.0
     for _ in range(steps):
         a, b = S.load_window(t, t + dt)
-        solution, energy = fluid.step(history, still, S, dt, p_in=mean_pressure_drop(G, a, b - a), p_out=0.0)
+        given(fluid, p_in=mean_pressure_drop(G, a, b - a), p_out=0.0)
+        solution, energy = fluid.step(history, still, S, dt, (a, b))
         history, t = [solution.state, history[0]], t + dt
         assert abs(energy["a2.residual"]) <= 1e-12 * energy["a2.scale"]
     state = history[0]

@@ -15,6 +15,7 @@ from multilayer.run.loop import run_case
 from multilayer.scene.setup import build_layer
 from multilayer.wall.checks import LayerError
 from multilayer.wall.stack import Stack, WallSpace
+from multilayer_plugins.planar import Planar
 
 REGISTRY = Registry.load(extra=[broken_layers])
 
@@ -89,7 +90,7 @@ def test_the_assembly_checks_what_each_layer_returns(name, said):
             build_layer(REGISTRY, spec)
         return
     layer = build_layer(REGISTRY, spec)
-    space = WallSpace.build([good, layer], 6.0, 0.5, 4, 1, names=["good-spring", name])
+    space = WallSpace.build([good, layer], Planar(), 6.0, 0.5, 4, 1, names=["good-spring", name])
     with pytest.raises(LayerError) as info:
         Stack.assemble(space)
     assert str(info.value).startswith(f"layers[1] ({name}): ") and said in str(info.value)

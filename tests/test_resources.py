@@ -7,13 +7,14 @@ from multilayer.case.resources import available_memory, fluid_dofs, need, wall_d
 from multilayer.wall.stack import WallSpace
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.linear_elastic import LinearElasticBand
+from multilayer_plugins.planar import Planar
 from multilayer_plugins.thin_shell import KoiterFamilyLayer
 
 
 @pytest.mark.parametrize("nz, nr", [(3, 2), (7, 5), (12, 1)])
 @pytest.mark.parametrize("order", [1, 2])
 def test_fluid_unknowns_are_those_of_the_channel(nz, nr, order):
-    channel = Channel.build(6.0, 0.5, nz, nr, order)
+    channel = Channel.build(Planar(), 6.0, 0.5, nz, nr, order)
     assert fluid_dofs(nz, nr, order) == channel.velocity.N + channel.pressure.N
 
 
@@ -23,7 +24,7 @@ def test_fluid_unknowns_are_those_of_the_channel(nz, nr, order):
 def test_wall_unknowns_are_those_of_the_wall(nz, order, cells):
     thin = KoiterFamilyLayer(1.0, 0.1, C1=1.0)
     layers = [thin] + [LinearElasticBand(1.0, 0.1, 1.0, 1.0) for _ in cells]
-    space = WallSpace.build(layers, 6.0, 0.5, nz, order, [None, *cells])
+    space = WallSpace.build(layers, Planar(), 6.0, 0.5, nz, order, [None, *cells])
     assert wall_dofs(nz, order, cells) == space.ndofs
 
 

@@ -11,6 +11,7 @@ from multilayer.scene.state import State, WallState
 from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.koiter_shell import koiter_shell
 from multilayer_plugins.linear_elastic import LinearElasticBand
+from multilayer_plugins.planar import Planar
 from multilayer_plugins.wave_membrane import wave_membrane
 
 L, R = 6.0, 0.5
@@ -23,7 +24,7 @@ def four_layer_stack(order, nz=24):
         wave_membrane(density=1.2, thickness=0.01, tension=2e3),
         LinearElasticBand.from_young_poisson(1.0, 0.05, 3e5, 0.3),
     ]
-    space = WallSpace.build(layers, L, R, nz, order, [None, 3, None, 2])
+    space = WallSpace.build(layers, Planar(), L, R, nz, order, [None, 3, None, 2])
     return space, Stack.assemble(space)
 
 

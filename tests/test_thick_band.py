@@ -10,6 +10,7 @@ from multilayer.numerics.timescheme import SCHEMES
 from multilayer.scene.state import State, WallState
 from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.linear_elastic import LinearElasticBand
+from multilayer_plugins.planar import Planar
 
 L, R, H = 2.0, 0.5, 0.5
 BAND = LinearElasticBand.from_young_poisson(1.1, H, 1e6, 0.3, ends="sliding", faces="sliding")
@@ -29,7 +30,7 @@ def mode(kind, m, n):
 def measured_eigenvalue(kind, m, n, nz, nr, order, dt, steps=60):
     """Run free vibration from the interpolated mode; λ_h from the BE factor of its amplitude."""
     fz, fr, omega = mode(kind, m, n)
-    space = WallSpace.build([BAND], L, R, nz, order, [nr])
+    space = WallSpace.build([BAND], Planar(), L, R, nz, order, [nr])
     stack = Stack.assemble(space)
     d0 = stack.zero_fixed(space.interpolate(lambda z, r, t: fz(z, r), lambda z, r, t: fr(z, r)))
     state = State(0, 0.0, WallState(d0, np.zeros_like(d0)))
@@ -88,7 +89,7 @@ def test_matrix_is_factorized_once_per_run():
 
 def test_the_kept_restrictions_are_the_prolongations_transposed():
     """WallSpace.restrictions[i] (kept: a step restricts to each line every step) is P_iᵀ, line by line."""
-    space = WallSpace.build([BAND], L, R, 6, 2, [2])
+    space = WallSpace.build([BAND], Planar(), L, R, 6, 2, [2])
     x = np.arange(space.ndofs, dtype=float) ** 1.5
     assert len(space.restrictions) == len(space.prolongations) == 2
     for P, Rt in zip(space.prolongations, space.restrictions):

@@ -25,6 +25,7 @@ from multilayer.scene.state import State, WallState
 from multilayer.wall.layer import LayerMatrices
 from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.koiter_shell import KoiterShell, koiter_shell
+from multilayer_plugins.planar import Planar
 from multilayer_plugins.thin_shell import KoiterFamilyLayer
 from multilayer_plugins.wave_membrane import wave_membrane
 
@@ -61,7 +62,7 @@ def exact_lambda(layer: KoiterFamilyLayer, n: np.ndarray) -> np.ndarray:
 
 def pinned(layer, nz: int, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Dense M, C, K of ``layer`` restricted to the free DOFs."""
-    space = make_line_space(L, nz, order, R)
+    space = make_line_space(L, nz, order, R, Planar())
     m = layer.forms(space)
     free = np.setdiff1d(np.arange(space.ndofs), layer.essential_dofs(space))
     pick = np.ix_(free, free)
@@ -152,7 +153,7 @@ def prony(a: np.ndarray) -> complex:
 
 def amplification(layer, nz: int, dt: float, steps: int) -> tuple[complex, complex]:
     """(z measured from η at the antinode, semi-discrete λ_h of mode 1) with P1."""
-    wall = WallSpace.build([layer], L, R, nz, 1)
+    wall = WallSpace.build([layer], Planar(), L, R, nz, 1)
     stack = Stack.assemble(wall)
     z = wall.lines[0].z
     mode = np.sin(np.pi * z / L)
@@ -241,7 +242,7 @@ def test_koiter_shell_takes_the_radius_of_its_line():
     assert isinstance(shell, KoiterShell)
     assert shell.viscous_poisson == 0.3 and shell.viscous_young == 0.0
     for radius in (0.5, 0.7):
-        space = make_line_space(L, 8, 2, radius)
+        space = make_line_space(L, 8, 2, radius, Planar())
         want = KoiterFamilyLayer.from_young_poisson(RHO, H, 1e6, 0.3, radius).forms(space)
         got = shell.forms(space)
         assert abs(got.stiffness - want.stiffness).max() == 0.0
@@ -249,7 +250,7 @@ def test_koiter_shell_takes_the_radius_of_its_line():
     with pytest.raises(ValueError, match="radius"):
         shell.long_wave_stiffness()
     own = koiter_shell(density=RHO, thickness=H, young=1e6, poisson=0.3, radius=0.4)
-    space = make_line_space(L, 8, 1, R)
+    space = make_line_space(L, 8, 1, R, Planar())
     want = KoiterFamilyLayer.from_young_poisson(RHO, H, 1e6, 0.3, 0.4)
     assert abs(own.forms(space).stiffness - want.forms(space).stiffness).max() == 0.0
     assert own.long_wave_stiffness() == want.C0
@@ -307,7 +308,7 @@ AUXETIC = KoiterFamilyLayer.from_young_poisson(RHO, H, 1e6, -0.9, R, viscous_you
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("layer", [MEMBRANE, SHELL, DAMPED, AUXETIC], ids=["membrane", "shell", "damped", "auxetic"])
 def test_matrices_symmetric_semidefinite(layer, order):
-    space = make_line_space(L, 12, order, R)
+    space = make_line_space(L, 12, order, R, Planar())
     m = layer.forms(space)
     assert isinstance(m, LayerMatrices)
     np.testing.assert_array_equal(layer.essential_dofs(space), space.end_dofs)
@@ -334,7 +335,7 @@ def energy_errors(order: int) -> np.ndarray:
     exact = 0.5 * (L / 2) * (c0 * 1.09 + c1 * (a**2 + 0.09 * b**2) + c2 * (a**4 + 0.09 * b**4))
     errors = []
     for nz in ENERGY_MESHES:
-        space = make_line_space(L, nz, order, R)
+        space = make_line_space(L, nz, order, R, Planar())
         errors.append(abs(SHELL.forms(space).elastic(eta(space.z)) / exact - 1))
     return np.array(errors)
 

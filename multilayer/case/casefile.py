@@ -20,6 +20,8 @@ from typing import Any
 import attrs
 
 from multilayer.case import resources
+from multilayer.case.ends import END_KEYS, build_end
+from multilayer.case.grid import sweep_table
 from multilayer.case.keys import (
     _blame_overrides,
     apply_overrides,
@@ -40,10 +42,26 @@ from multilayer.case.model import (
     TimeSpec,
 )
 from multilayer.case.partial import NotBuilt, Unbuilt
-from multilayer.functions.domain import Domain, defect
+from multilayer.case.schema import (
+    CELLS,
+    FLUID_QUANTITIES,
+    GEOMETRY,
+    LINE_QUANTITIES,
+    LOAD_KEYS,
+    MESH,
+    OUTPUT,
+    POINT_QUANTITIES,
+    PROBE,
+    SECTIONS,
+    SOLVER,
+    TIME,
+    WALL_LOAD_KEYS,
+)
+from multilayer.functions.domain import Domain, judge
 from multilayer.functions.formula import Formula, FormulaError
 from multilayer.functions.loads import FormulaPressure, load_from_spec
-from multilayer.numerics.linsolve import BACKENDS, FACTORS, REUSE_MODES, SINGLE, Reuse
+from multilayer.geometry.contract import Geometry as Shape
+from multilayer.numerics.linsolve import SINGLE, Reuse
 from multilayer.plugin.problems import (
     MISSING,
     CaseError,
@@ -59,66 +77,6 @@ from multilayer.wall.layer import Layer
 
 __all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems",
            "coupler_objections", "key_steps", "parse_value"]
-
-SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver",
-            "sweep")
-
-GEOMETRY = (
-    Param("length", "L", "cm", gt=0.0, doc="channel length"),
-    Param("radius", "R", "cm", gt=0.0, doc="reference radius of the lumen"),
-)
-MESH = (
-    Param("nz", type=int, ge=1, doc="cells along z, shared by every field"),
-    Param("nr", type=int, ge=1, doc="fluid cells across the lumen"),
-    Param("order", type=int, choices=(1, 2), doc="polynomial order of every field"),
-    Param("grading", default=1.0, ge=1.0, doc="fluid refinement toward the wall (1 = uniform)"),
-)
-TIME = (
-    Param("end", "T", "s", gt=0.0, doc="final time"),
-    Param("dt", "Δt", "s", gt=0.0, doc="time step"),
-)
-#: radial cells of a thick layer: a core key, not a plugin parameter
-CELLS = Param("cells", type=int, ge=1, default=4, doc="radial cells of a thick band")
-LOAD_KEYS = ("inlet", "outlet", "external", "interface")
-QUANTITIES = ("eta", "v", "d_z", "d_r", "u_z", "u_r", "p", "flow_rate")
-FLUID_QUANTITIES = ("u_z", "u_r", "p", "flow_rate")
-LINE_QUANTITIES = ("eta", "v")
-POINT_QUANTITIES = ("d_z", "d_r", "u_z", "u_r", "p")
-PROBE = (
-    Param("name", type=str, default=None, doc="column name in series.csv"),
-    Param("quantity", type=str, choices=QUANTITIES, doc="what is measured"),
-    Param("z", "z", "cm", doc="axial position"),
-    Param("r", "r", "cm", default=None,
-          doc="radial position in the reference configuration: Lagrangian in the wall, r̂ of the ALE map in the fluid"),
-    Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
-)
-OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
-SOLVER = (
-    Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
-    Param("reuse", type=str, default="krylov", choices=REUSE_MODES,
-          doc="a changing matrix: 'krylov' (GMRES preconditioned by an earlier factorization) or 'none' "
-              "(factorize every step)"),
-    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1,
-          doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
-    Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
-          doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
-    Param("factors", type=str, default=Reuse().factors, choices=FACTORS,
-          doc="precision of a changing matrix's factorizations: 'double', or 'single' (half their memory, "
-              "faster; every solve by GMRES on them to the same tolerance; SuperLU only)"),
-    Param("factorization_cost", default=Reuse().factorization_cost, gt=0.0,
-          doc="a factorization's cost in GMRES iterations: the iterations held factors cost beyond what they "
-              "needed when young are added up, and at this sum they are replaced (reuse = 'krylov'; default: "
-              "14 up to 70k unknowns, then growing like their square root; a very large value: only at "
-              "max_iterations)"),
-    Param("threads", type=int, default=1, ge=0,
-          doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
-    Param("max_displacement", "", "R", default=0.5, gt=0.0,
-          doc="stop the run when |η| on the lumen exceeds this fraction of R"),
-    Param("energy_margin", default=0.01, gt=0.0,
-          doc="stop the run when the energy exceeds initial energy + work by this fraction of their scale"),
-)
-#: relative tolerance on end/dt being a whole number of steps
-STEPS_TOL = 1e-6
 
 
 def load_case(path: Path | str, overrides: Iterable[str] = (), registry: Registry | None = None) -> Case:
@@ -223,6 +181,8 @@ class _Validator:
         self.coupler_object: Any = None
         #: the layer objects built from the case, by key path
         self.built_layers: dict[str, Layer] = {}
+        #: each open end's condition as resolved case-file data
+        self.ends: dict[str, dict[str, Any]] = {}
 
     def add(self, problems: Iterable[Problem]) -> None:
         self.problems.extend(problems)
@@ -259,23 +219,23 @@ class _Validator:
             self.problems.append(Problem("title", title, "expected a string"))
         parts["title"] = self.part("title", mark, lambda: title)
         mark = self.mark()
-        geometry = self.section(data, "geometry", GEOMETRY)
+        geometry, shape = self.geometry(data)
         parts["geometry"] = self.part("geometry", mark, lambda: Geometry(**geometry))
         mark = self.mark()
         mesh = self.section(data, "mesh", MESH)
         parts["mesh"] = self.part("mesh", mark, lambda: MeshSpec(**mesh))
         mark = self.mark()
         time = self.section(data, "time", TIME)
-        self.check_steps(time)
+        self.add(resources.steps_problems(time))
         parts["time"] = self.part("time", mark, lambda: TimeSpec(**time))
         mark = self.mark()
         fluid = self.fluid(data.get("fluid"))
         parts["fluid"] = self.part("fluid", mark, lambda: fluid)
         mark = self.mark()
         layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
-        self.check_size(mesh, fluid, layers)
-        if self.mark() == mark:
-            self.probe_layers(layers, geometry, mesh)
+        self.add(resources.size_problems(mesh, fluid is not None, layers))
+        if self.mark() == mark and shape is not None:
+            self.probe_layers(layers, shape, geometry, mesh)
         coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
         # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
@@ -302,15 +262,13 @@ class _Validator:
         case = Case(**parts)
         self.add(self.objections(case))
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
-            from multilayer.case.grid import sweep_table
-
             self.add(sweep_table(data["sweep"])[1])
         if self.problems:
             raise CaseError(self.problems)
 
         resolved = {
             "title": title,
-            "geometry": geometry,
+            "geometry": {k: v for k, v in geometry.items() if k != "params"} | dict(geometry["params"]),
             "mesh": mesh,
             "time": time,
             "fluid": None if fluid is None else {"model": fluid.model, **fluid.params},
@@ -320,7 +278,8 @@ class _Validator:
             ],
             "coupler": {"model": coupler.model, **coupler.params},
             "loads": {
-                **{key: getattr(loads, key).to_dict() for key in LOAD_KEYS},
+                **{key: self.ends[key] for key in END_KEYS},
+                **{key: getattr(loads, key).to_dict() for key in WALL_LOAD_KEYS},
                 "wall_motion": None if loads.wall_motion is None else str(loads.wall_motion),
             },
             "initial": {
@@ -346,45 +305,6 @@ class _Validator:
         if self.coupler_object is None:
             return []
         return coupler_objections(self.coupler_object, case)
-
-    def check_steps(self, time: Mapping[str, float]) -> None:
-        if "end" not in time or "dt" not in time:
-            return
-        steps = time["end"] / time["dt"]
-        if not steps <= resources.MAX_STEPS:  # also end/dt = inf
-            self.problems.append(
-                Problem("time.dt", time["dt"], f"{steps:.3g} steps to time.end = {time['end']:g}; expected at most "
-                        f"{resources.MAX_STEPS:.0e} steps", "is dt in seconds?")
-            )
-        elif round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
-            self.problems.append(
-                Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
-                        f"end/dt = {steps:.6g}")
-            )
-
-    def check_size(self, mesh: Mapping[str, Any], fluid: ModelSpec | None, layers: list[LayerSpec]) -> None:
-        """Refuse a case whose unknowns would not fit in the machine's available memory (:mod:`multilayer.case.resources`).
-
-        The problem is reported at the largest of the size keys (``mesh.nz``,
-        ``mesh.nr``, a band's ``cells``).
-        """
-        if not {"nz", "nr", "order"} <= mesh.keys():
-            return
-        bands = [layer for layer in layers if not layer.thin and layer.cells is not None]
-        need = resources.need(mesh["nz"], mesh["nr"], mesh["order"], fluid=fluid is not None, wall=bool(layers),
-                              band_cells=[layer.cells for layer in bands])
-        available = resources.available_memory()
-        if available is None or need.memory <= available:
-            return
-        sizes = [("mesh.nz", mesh["nz"])] + ([("mesh.nr", mesh["nr"])] if fluid is not None else [])
-        sizes += [(f"{layer.path}.cells", layer.cells) for layer in bands]
-        path, value = max(sizes, key=lambda item: item[1])
-        parts = ", ".join(f"{part} {n:.3g}" for part, n in (("fluid", need.fluid), ("wall", need.wall)) if n)
-        self.problems.append(Problem(
-            path, value,
-            f"the case needs about {resources.gigabytes(need.memory)} of memory ({need.dofs:.3g} unknowns: {parts}), "
-            f"this machine has {resources.gigabytes(available)} available",
-            "use a coarser mesh (see docs/case-files.md, Size limits)"))
 
     def model(self, kind: str, spec: Any, path: str, extra: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any], bool] | None:
         """(registered plugin, checked params, params ok) of a ``{model = ..., ...}`` table.
@@ -498,7 +418,31 @@ class _Validator:
         H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
         return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
 
-    def probe_layers(self, layers: list[LayerSpec], geometry: Mapping[str, float], mesh: Mapping[str, Any]) -> None:
+    def geometry(self, data: Mapping[str, Any]) -> tuple[dict[str, Any], Shape | None]:
+        """The ``[geometry]`` values (its plugin's parameters under ``params``) and the geometry, built."""
+        table = data.get("geometry", MISSING)
+        kind = table.get("kind", "planar") if isinstance(table, Mapping) else "planar"
+        found = self.registry.find("geometry", kind) if isinstance(kind, str) else None
+        if found is None:
+            names = self.registry.names("geometry")
+            hint = did_you_mean(kind, names) if isinstance(kind, str) else ""
+            self.problems.append(Problem("geometry.kind", kind, "no such geometry plugin",
+                                         hint or "available: " + (", ".join(names) or "none installed")))
+            return self.section(data, "geometry", GEOMETRY[:2]), None
+        own = found.record.params
+        values = self.section(data, "geometry", GEOMETRY + own)
+        params = {p.name: values.pop(p.name) for p in own if p.name in values}
+        mark = self.mark()
+        shape = self.construct(found, params, "geometry")
+        if self.mark() != mark or not isinstance(shape, Shape):
+            if self.mark() == mark:
+                self.problems.append(Problem("geometry.kind", kind, "the plugin's factory returned "
+                                             f"{type(shape).__name__}, not a Geometry"))
+            shape = None
+        return {**values, "params": params}, shape
+
+    def probe_layers(self, layers: list[LayerSpec], shape: Shape, geometry: Mapping[str, float],
+                     mesh: Mapping[str, Any]) -> None:
         """Have every layer assemble on a small wall (:mod:`multilayer.wall.probe`); problems at its path.
 
         Only when every layer was built as a layer of its kind and nothing
@@ -507,7 +451,7 @@ class _Validator:
         if not layers or len(self.built_layers) != len(layers):
             return
         objects = [self.built_layers[layer.path] for layer in layers]
-        found = wall_probe.probe(objects, [layer.model for layer in layers], geometry.get("length", 1.0),
+        found = wall_probe.probe(objects, [layer.model for layer in layers], shape, geometry.get("length", 1.0),
                                  geometry.get("radius", 1.0), mesh.get("order", 2))
         for index, problems in found.items():
             layer = layers[index]
@@ -540,9 +484,9 @@ class _Validator:
 
     def judge(self, formula: Formula, path: str, domain: Domain) -> None:
         """A problem at ``path`` when ``formula`` is not a finite real number somewhere on ``domain``."""
-        reason = defect(formula, domain)
-        if reason is not None:
-            self.problems.append(Problem(path, str(formula), f"{reason}; expected a finite real value for every {domain}"))
+        problem = judge(formula, path, domain)
+        if problem is not None:
+            self.problems.append(problem)
 
     def table(self, data: Any, path: str, keys: Iterable[str]) -> Mapping[str, Any]:
         """A table whose keys must be among ``keys``; {} (with a problem) if it is not a table."""
@@ -558,7 +502,16 @@ class _Validator:
     def loads(self, data: Any, constants: Mapping[str, float], end: float) -> Loads:
         data = self.table(data, "loads", (*LOAD_KEYS, "wall_motion"))
         pressures = {}
-        for key in LOAD_KEYS:
+        for key in END_KEYS:
+            mark = self.mark()
+            try:
+                condition, self.ends[key] = build_end(data.get(key, 0.0), f"loads.{key}", self.registry,
+                                                      self.base_dir, constants, end)
+            except CaseError as exc:
+                self.add(exc.problems)
+                condition = None
+            pressures[key] = self.part(f"loads.{key}", mark, lambda: condition)
+        for key in WALL_LOAD_KEYS:
             spec, mark = data.get(key, 0.0), self.mark()
             try:
                 load = load_from_spec(spec, f"loads.{key}", self.base_dir, constants)

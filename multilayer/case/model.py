@@ -11,6 +11,7 @@ from typing import Any
 
 import attrs
 
+from multilayer.boundary.contract import BoundaryCondition
 from multilayer.functions.formula import Formula
 from multilayer.functions.loads import PressureLoad
 from multilayer.numerics.linsolve import Reuse
@@ -20,6 +21,8 @@ from multilayer.numerics.linsolve import Reuse
 class Geometry:
     length: float  #: L (cm), channel length
     radius: float  #: R (cm), reference radius of the lumen
+    kind: str = "planar"  #: the geometry plugin (``[geometry] kind``): what the meridian plane stands for
+    params: Mapping[str, Any] = attrs.field(factory=dict, eq=False)  #: its own parameters
 
 
 @attrs.frozen
@@ -57,8 +60,8 @@ class LayerSpec(ModelSpec):
 
 @attrs.frozen
 class Loads:
-    inlet: PressureLoad
-    outlet: PressureLoad
+    inlet: BoundaryCondition  #: the condition at z = 0 (a boundary plugin)
+    outlet: BoundaryCondition  #: the condition at z = L
     external: PressureLoad  #: P_e on the outer surface of the wall
     interface: PressureLoad  #: pressure on the lumen line when there is no fluid
     wall_motion: Formula | None = None  #: prescribed η(t, z) for a fluid with a moving rigid wall

@@ -28,10 +28,14 @@ fill per row grows like log N on the nested-dissection ordering of
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import attrs
+
+from multilayer.case.schema import STEPS_TOL
+from multilayer.plugin.problems import Problem
 
 #: Peak memory of a run per unknown (bytes) at :data:`DOFS_MEASURED` unknowns, measured and rounded up.
 BYTES_PER_DOF = 11_000
@@ -129,3 +133,42 @@ def gigabytes(n: float) -> str:
     """
     g = n / GB
     return f"{g:.0f} GB" if 10 <= g < 1e4 else f"{g:.2g} GB"
+
+
+def steps_problems(time: Mapping[str, float]) -> list[Problem]:
+    """A run of too many steps (beyond :data:`MAX_STEPS`), or ``time.end`` not a whole number of steps."""
+    if "end" not in time or "dt" not in time:
+        return []
+    steps = time["end"] / time["dt"]
+    if not steps <= MAX_STEPS:  # also end/dt = inf
+        return [Problem("time.dt", time["dt"], f"{steps:.3g} steps to time.end = {time['end']:g}; expected at most "
+                        f"{MAX_STEPS:.0e} steps", "is dt in seconds?")]
+    if round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
+        return [Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
+                        f"end/dt = {steps:.6g}")]
+    return []
+
+
+def size_problems(mesh: Mapping[str, Any], fluid: bool, layers: Sequence[Any]) -> list[Problem]:
+    """A case whose unknowns would not fit in the machine's available memory.
+
+    The problem is reported at the largest of the size keys (``mesh.nz``,
+    ``mesh.nr``, a band's ``cells``); ``layers`` are the case's layer specs.
+    """
+    if not {"nz", "nr", "order"} <= mesh.keys():
+        return []
+    bands = [layer for layer in layers if not layer.thin and layer.cells is not None]
+    needed = need(mesh["nz"], mesh["nr"], mesh["order"], fluid=fluid, wall=bool(layers),
+                  band_cells=[layer.cells for layer in bands])
+    available = available_memory()
+    if available is None or needed.memory <= available:
+        return []
+    sizes = [("mesh.nz", mesh["nz"])] + ([("mesh.nr", mesh["nr"])] if fluid else [])
+    sizes += [(f"{layer.path}.cells", layer.cells) for layer in bands]
+    path, value = max(sizes, key=lambda item: item[1])
+    parts = ", ".join(f"{part} {n:.3g}" for part, n in (("fluid", needed.fluid), ("wall", needed.wall)) if n)
+    return [Problem(
+        path, value,
+        f"the case needs about {gigabytes(needed.memory)} of memory ({needed.dofs:.3g} unknowns: {parts}), "
+        f"this machine has {gigabytes(available)} available",
+        "use a coarser mesh (see docs/case-files.md, Size limits)")]

@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING, ClassVar
 import attrs
 
 from multilayer.functions.loads import is_zero
+from multilayer.numerics.timescheme import SCHEMES, TimeScheme
 
 if TYPE_CHECKING:  # pragma: no cover
 
     from multilayer.case.model import Case
-    from multilayer.numerics.timescheme import TimeScheme
     from multilayer.scene.setup import Setup
     from multilayer.scene.state import State
 
@@ -55,8 +55,6 @@ class Coupler(ABC):
     schemes: ClassVar[tuple[str, ...]] = ("backward-euler",)
 
     def __init__(self, scheme: str = "backward-euler"):
-        from multilayer.numerics.timescheme import SCHEMES
-
         if scheme not in self.schemes:
             raise ValueError(f"scheme {scheme!r} is not offered; choose one of {', '.join(self.schemes)}")
         self.scheme: TimeScheme = SCHEMES[scheme]
@@ -68,9 +66,12 @@ class Coupler(ABC):
         The default rejects a non-zero load that the coupler would ignore.
         """
         name = getattr(self, "name", type(self).__name__)
+        def set_(key):
+            load = getattr(case.loads, key)
+            return not load.at_rest() if key in ("inlet", "outlet") else not is_zero(load)
+
         return [f"loads.{key} is set, but {name} does not apply it (it applies: {', '.join(self.loads) or 'none'})"
-                for key in ("inlet", "outlet", "external", "interface")
-                if key not in self.loads and not is_zero(getattr(case.loads, key))]
+                for key in ("inlet", "outlet", "external", "interface") if key not in self.loads and set_(key)]
 
     def fluid_wall(self, case: Case) -> str:
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""

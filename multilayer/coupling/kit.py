@@ -46,10 +46,13 @@ def lumen_mass(setup: Setup, index: int | None = None) -> sp.csr_matrix:
 
 
 def window_loads(setup: Setup, scheme: TimeScheme, t0: float, t1: float) -> dict[str, float]:
-    """Every pressure load of the case averaged over the scheme's window of the step [t0, t1]."""
+    """The wall's pressure loads (``external``, ``interface``) averaged over the scheme's window of [t0, t1].
+
+    The fluid's ends are the fluid's: it asks their conditions itself (:meth:`Fluid.system` takes the step's times).
+    """
     a, b = scheme.load_window(t0, t1)
     loads = setup.case.loads
-    return {key: getattr(loads, key).average(a, b) for key in ("inlet", "outlet", "external", "interface")}
+    return {key: getattr(loads, key).average(a, b) for key in ("external", "interface")}
 
 
 def external_force(setup: Setup, pressure: float) -> np.ndarray:
@@ -60,14 +63,20 @@ def external_force(setup: Setup, pressure: float) -> np.ndarray:
 def fluid_groups(terms: Mapping[str, float], numerical: bool = True) -> tuple[dict, dict, dict]:
     """The fluid's identity terms as ledger groups (stored, work, dissipation).
 
+    Besides the fluid's own terms, whatever its ends' conditions report
+    (``stored.*``, ``work.*``, ``dissipation.*`` columns) goes to its group:
+    a coupler passes the ends through without knowing their kind.
     ``numerical=False`` leaves the fluid's numerical dissipation out, for a
     coupler that reports it together with another's.
     """
-    stored = {"kinetic.fluid": terms["kinetic.fluid"]}
+    stored = {"kinetic.fluid": terms["kinetic.fluid"], **{k: v for k, v in terms.items() if k.startswith("stored.")}}
     work = {k: terms[k] for k in ("work.inlet", "work.outlet", "work.wall") if k in terms}
-    keys = ("dissipation.viscous.fluid", "dissipation.geometric.fluid") + (
-        ("dissipation.numerical.fluid",) if numerical else ())
-    return stored, work, {k: terms[k] for k in keys}
+    work.update({k: v for k, v in terms.items() if k.startswith("work.") and k not in work})
+    own = ("dissipation.viscous.fluid", "dissipation.geometric.fluid", "dissipation.numerical.fluid")
+    keys = own if numerical else own[:2]
+    dissipation = {k: terms[k] for k in keys}
+    dissipation.update({k: v for k, v in terms.items() if k.startswith("dissipation.") and k not in own})
+    return stored, work, dissipation
 
 
 def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Domain:

@@ -3,19 +3,57 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from multilayer.boundary.contract import BoundaryCondition
+from multilayer.geometry.contract import Geometry
 from multilayer.geometry.spaces import LineSpace
+from multilayer.numerics.linsolve import Reuse
 
 if TYPE_CHECKING:  # pragma: no cover
-
     from multilayer.numerics.linsolve import SolverStats
     from multilayer.numerics.timescheme import TimeScheme
+
+
+#: the fluid's open ends: z = 0 and z = L
+ENDS = ("inlet", "outlet")
+
+
+@attrs.frozen(eq=False)
+class FluidSetup:
+    """What a fluid is discretized for: the geometry, the channel and its mesh, the wall mode, the ends.
+
+    ``wall`` is how the fluid sees the wall: ``coupled`` (its u_r on the wall
+    is an unknown the coupler ties to the wall), ``rigid`` (u = 0, the domain
+    never moves) or ``prescribed`` (u_r given on the wall).  ``ends`` holds
+    the condition of each open end (``inlet``, ``outlet``); an end left out
+    is traction-free.  ``line`` is the interface line's space when the caller
+    already has it (the wall's lumen line); ``reuse`` when a changing matrix
+    is refactorized.
+    """
+
+    geometry: Geometry
+    length: float  #: L (cm)
+    radius: float  #: R (cm)
+    nz: int
+    nr: int
+    order: int = 2
+    grading: float = 1.0
+    wall: str = "coupled"
+    solver: str = "superlu"
+    reuse: Reuse = Reuse()
+    line: LineSpace | None = None
+    ends: Mapping[str, BoundaryCondition] = attrs.field(factory=dict)
+
+    def __attrs_post_init__(self):
+        unknown = set(self.ends) - set(ENDS)
+        if unknown:
+            raise ValueError(f"the fluid's ends are {', '.join(ENDS)}; not {', '.join(sorted(unknown))}")
 
 
 @attrs.frozen(eq=False)
@@ -66,14 +104,9 @@ class Fluid(ABC):
     viscosity: float  #: μ (poise)
 
     @abstractmethod
-    def setup(self, length: float, radius: float, nz: int, nr: int, order: int = 2, grading: float = 1.0,
-              wall: str = "coupled", solver: str = "superlu", line: LineSpace | None = None) -> Any:
-        """Discretize for a wall mode ``coupled``, ``rigid`` or ``prescribed``.
-
-        A fluid whose ``setup`` also takes a keyword ``reuse`` (a
-        :class:`multilayer.numerics.linsolve.Reuse`) is given the case's
-        ``[solver] reuse`` policy; one without it is set up as before.
-        """
+    def setup(self, spec: FluidSetup) -> Any:
+        """Discretize for ``spec`` (geometry, channel, mesh, wall mode, the ends' conditions); returns the
+        discretization, which the fluid keeps for the methods below."""
 
     @property
     @abstractmethod
@@ -106,8 +139,9 @@ class Fluid(ABC):
 
     @abstractmethod
     def system(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
-               p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> Any:
-        """The linear system of one step on ``domain`` (history: the states at tⁿ, t^{n−1}, ...)."""
+               times: tuple[float, float], interface: Interface | None = None) -> Any:
+        """The linear system of one step [tⁿ, tⁿ⁺¹] = ``times`` on ``domain`` (history: the states at tⁿ,
+        t^{n−1}, ...), the ends' conditions asked for their tractions over the scheme's window of the step."""
 
     @abstractmethod
     def matrix(self, system: Any) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, np.ndarray]:
@@ -137,15 +171,15 @@ class Fluid(ABC):
     def reaction(self, system: Any, mean: np.ndarray) -> np.ndarray:
         """The fluid's residual on the wall's u_r rows as a line vector: minus its force on the wall."""
 
-    def step(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float, p_in: float = 0.0,
-             p_out: float = 0.0, interface: Interface | None = None, eta_old: np.ndarray | None = None,
+    def step(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
+             times: tuple[float, float], interface: Interface | None = None, eta_old: np.ndarray | None = None,
              eta_new: np.ndarray | None = None) -> tuple[Any, dict[str, float]]:
         """One step: system, solve and energy terms; returns (solution, terms).
 
         ``eta_old``, ``eta_new`` are η at tⁿ and tⁿ⁺¹, on which the identity
         measures the kinetic energy (default: the domain's η, a still domain).
         """
-        system = self.system(history, domain, scheme, dt, p_in, p_out, interface)
+        system = self.system(history, domain, scheme, dt, times, interface)
         solution = self.solve(system)
         eta_old = domain.eta if eta_old is None else eta_old
         eta_new = domain.eta if eta_new is None else eta_new
@@ -154,6 +188,10 @@ class Fluid(ABC):
     @abstractmethod
     def wall_velocity(self, state: Any) -> np.ndarray:
         """The wall's u_r of ``state`` as a line vector."""
+
+    @abstractmethod
+    def energy(self, state: Any, eta: np.ndarray | None = None) -> dict[str, float]:
+        """The fluid's stored energy by ledger column: ``kinetic.fluid`` and what its ends' conditions store."""
 
     @abstractmethod
     def kinetic_energy(self, state: Any, eta: np.ndarray | None = None) -> float:

@@ -17,6 +17,7 @@ import attrs
 import numpy as np
 
 from multilayer.functions.formula import Formula
+from multilayer.plugin.problems import Problem
 
 #: Grid points per variable, by the number of variables the domain has.
 POINTS = {1: 257, 2: 65, 3: 17}
@@ -94,3 +95,15 @@ def defect(formula: Formula, domain: Domain) -> str | None:
     cause = next((CAUSES[f] for f in CAUSES if f in flags), "not finite")
     where = ", ".join(f"{name} = {value:g}" for name, value in point.items())
     return f"gives {values[index]:g} at {where}: {cause}"
+
+
+def judge(formula: Formula, path: str, domain: Domain) -> Problem | None:
+    """The problem at ``path`` when ``formula`` is not a finite real number somewhere on ``domain`` (else None).
+
+    >>> print(judge(Formula.parse("1/(t-t)"), "loads.inlet", Domain({"t": (0.0, 1.0)})))
+    loads.inlet = '1/(t-t)': gives inf at t = 0: a division by zero (or log of 0); expected a finite real value for every t in [0, 1]
+    """
+    reason = defect(formula, domain)
+    if reason is None:
+        return None
+    return Problem(path, str(formula), f"{reason}; expected a finite real value for every {domain}")

@@ -7,6 +7,7 @@ import numpy as np
 import scipy.sparse as sp
 import skfem
 
+from multilayer.geometry.contract import Geometry
 from multilayer.geometry.mesh import lagrange_line, line_mesh, match_by_z
 
 
@@ -15,13 +16,17 @@ class LineSpace:
     """The 1D space of a thin layer on the interface line r = ``radius``.
 
     ``basis`` is a scikit-fem basis of 1D Lagrange elements (order of the
-    scene) on the z-partition shared by every field of the scene.
+    scene) on the z-partition shared by every field of the scene; its
+    quadrature weights carry the ``geometry``'s measure of the line
+    (:meth:`Geometry.weighted`), so a form assembled on it integrates over
+    the line's surface (per unit depth in a planar channel, over 2πR in a tube).
     """
 
     basis: skfem.CellBasis
     radius: float
     length: float
     order: int
+    geometry: Geometry
 
     @property
     def z(self) -> np.ndarray:
@@ -45,7 +50,9 @@ class BandSpace:
 
     ``basis`` is a vector (d_z, d_r) Lagrange basis restricted to the band's
     elements; its numbering is that of the whole wall, so matrices assembled
-    on it are already global.
+    on it are already global.  Its quadrature weights carry the
+    ``geometry``'s measure; a layer whose forms need more of the geometry
+    (a tube's hoop strain d_r/r) reads ``geometry``.
     """
 
     basis: skfem.CellBasis
@@ -53,6 +60,7 @@ class BandSpace:
     r_outer: float
     length: float
     order: int
+    geometry: Geometry
 
     @property
     def thickness(self) -> float:
@@ -89,19 +97,19 @@ class BandSpace:
         return np.intersect1d(picked, owned)
 
 
-
-def make_line_space(length: float, nz: int, order: int, radius: float) -> LineSpace:
-    """The canonical 1D space of an interface line r = ``radius``.
+def make_line_space(length: float, nz: int, order: int, radius: float, geometry: Geometry) -> LineSpace:
+    """The canonical 1D space of an interface line r = ``radius``, in ``geometry``'s measure.
 
     Every field that shares the line (thin layer, fluid u_r trace, thick d_r)
     maps its own DOFs onto this numbering with :func:`line_prolongation`.
 
-    >>> s = make_line_space(6.0, 3, 2, 0.5)
+    >>> from multilayer_plugins.planar import Planar
+    >>> s = make_line_space(6.0, 3, 2, 0.5, Planar())
     >>> int(s.ndofs), s.end_dofs.tolist()
     (7, [0, 3])
     """
-    basis = skfem.Basis(line_mesh(length, nz), lagrange_line(order))
-    return LineSpace(basis=basis, radius=radius, length=length, order=order)
+    basis = geometry.weighted(skfem.Basis(line_mesh(length, nz), lagrange_line(order)), radius)
+    return LineSpace(basis=basis, radius=radius, length=length, order=order, geometry=geometry)
 
 
 def line_prolongation(line: LineSpace, dofs: np.ndarray, dof_z: np.ndarray, n: int) -> sp.csr_matrix:

@@ -27,7 +27,13 @@ from collections.abc import Iterable
 
 import pluggy
 
-from multilayer.plugin.records import CouplerPlugin, FluidPlugin, LayerPlugin
+from multilayer.plugin.records import (
+    BoundaryPlugin,
+    CouplerPlugin,
+    FluidPlugin,
+    GeometryPlugin,
+    LayerPlugin,
+)
 
 PROJECT = "multilayer"
 
@@ -93,4 +99,48 @@ def multilayer_couplers() -> Iterable[CouplerPlugin]:
         ...     return [CouplerPlugin(name="frozen", factory=dict, doc="Nothing moves.")]
         >>> multilayer_couplers()[0].doc
         'Nothing moves.'
+    """
+
+
+@hookspec
+def multilayer_geometries() -> Iterable[GeometryPlugin]:
+    """Geometries this plugin provides: what the meridian plane (z, r) of a scene stands for.
+
+    The factory receives the validated parameters (the keys of ``[geometry]``
+    besides ``kind``, ``length`` and ``radius``) as keyword arguments and
+    returns a :class:`multilayer.geometry.contract.Geometry`, which owns the
+    measure of every integral of the scene.
+
+    Example::
+
+        >>> from multilayer.plugin.records import GeometryPlugin, Param
+        >>> @hookimpl
+        ... def multilayer_geometries():
+        ...     return [GeometryPlugin(name="deep-channel", factory=dict,
+        ...                            params=(Param("depth", unit="cm", gt=0),),
+        ...                            doc="A planar channel of a given depth.")]
+        >>> multilayer_geometries()[0].params[0].name
+        'depth'
+    """
+
+
+@hookspec
+def multilayer_boundaries() -> Iterable[BoundaryPlugin]:
+    """Boundary conditions for the open ends of the fluid (inlet, outlet) this plugin provides.
+
+    The factory receives the validated parameters (the keys of the end's
+    table besides ``kind``) as keyword arguments (and ``context=`` when the
+    record asks for it) and returns a
+    :class:`multilayer.boundary.contract.BoundaryCondition`.
+
+    Example::
+
+        >>> from multilayer.plugin.records import BoundaryPlugin, Param
+        >>> @hookimpl
+        ... def multilayer_boundaries():
+        ...     return [BoundaryPlugin(name="resistance", factory=dict,
+        ...                            params=(Param("resistance", "R", unit="dyn·s/cm⁴", ge=0),),
+        ...                            doc="p = R Q.")]
+        >>> multilayer_boundaries()[0].name
+        'resistance'
     """

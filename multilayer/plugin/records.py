@@ -111,6 +111,29 @@ class CouplerPlugin(PluginRecord):
 
 
 @attrs.frozen
+class GeometryPlugin(PluginRecord):
+    """A geometry: what the meridian plane (z, r) stands for, its measure (a
+    :class:`multilayer.geometry.contract.Geometry`). ``[geometry] kind`` names it; its parameters sit in
+    ``[geometry]`` beside ``length`` and ``radius``."""
+
+    kind: ClassVar[str] = "geometry"
+
+
+@attrs.frozen
+class BoundaryPlugin(PluginRecord):
+    """A condition on an open end of the fluid (a :class:`multilayer.boundary.contract.BoundaryCondition`).
+
+    A case names it as ``[loads] inlet = {kind = "<name>", ...}`` (or ``outlet``).
+    With ``context`` the factory also receives ``context=``, a
+    :class:`multilayer.boundary.contract.BuildContext` (the key path, the case's
+    folder for relative file names, the constants a formula may use).
+    """
+
+    kind: ClassVar[str] = "boundary"
+    context: bool = attrs.field(default=False, kw_only=True)
+
+
+@attrs.frozen
 class Registered:
     """A record as the registry holds it: with the package that provided it."""
 

@@ -32,6 +32,8 @@ HOOKS = {
     "layer": "multilayer_layers",
     "fluid": "multilayer_fluids",
     "coupler": "multilayer_couplers",
+    "geometry": "multilayer_geometries",
+    "boundary": "multilayer_boundaries",
 }
 
 
@@ -229,12 +231,17 @@ def _plugin_name(plugin: object) -> str:
 
 def plugin_versions(case, registry: Registry) -> dict[str, dict[str, str]]:
     """Which package and version provides every model of ``case``, by its key path (``coupler``, ``layers[0]``...)."""
-    specs = [("coupler", case.coupler), *(("layer", s) for s in case.layers)]
+    specs = [("coupler", case.coupler.path, case.coupler.model),
+             *(("layer", s.path, s.model) for s in case.layers)]
     if case.fluid is not None:
-        specs.append(("fluid", case.fluid))
+        specs.append(("fluid", case.fluid.path, case.fluid.model))
+    specs.append(("geometry", "geometry", case.geometry.kind))
+    loads = case.resolved.get("loads") or {}
+    specs += [("boundary", f"loads.{end}", loads[end]["kind"]) for end in ("inlet", "outlet")
+              if isinstance(loads.get(end), dict) and "kind" in loads[end]]
     out = {}
-    for kind, spec in specs:
-        reg = registry.find(kind, spec.model)
+    for kind, path, name in specs:
+        reg = registry.find(kind, name)
         if reg is not None:
-            out[spec.path] = {"name": spec.model, "package": reg.package, "version": reg.version}
+            out[path] = {"name": name, "package": reg.package, "version": reg.version}
     return out

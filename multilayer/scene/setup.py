@@ -10,7 +10,6 @@ it; they are counters, not state.)
 
 from __future__ import annotations
 
-import inspect
 import time
 from typing import Any
 
@@ -18,7 +17,8 @@ import attrs
 import numpy as np
 
 from multilayer.case.model import Case, Probe
-from multilayer.fluid.contract import Fluid
+from multilayer.fluid.contract import ENDS, Fluid, FluidSetup
+from multilayer.geometry.contract import Geometry
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.plugin.registry import Registry
 from multilayer.scene.state import State, WallState
@@ -29,6 +29,15 @@ from multilayer.wall.stack import LUMEN, Stack, WallSpace
 
 def build_model(registry: Registry, kind: str, spec) -> Any:
     return registry.get(kind, spec.model).record.factory(**dict(spec.params))
+
+
+def build_geometry(registry: Registry, spec) -> Geometry:
+    """The geometry of the case's ``[geometry]`` (its kind, built with its parameters)."""
+    geometry = registry.get("geometry", spec.kind).record.factory(**dict(spec.params))
+    if not isinstance(geometry, Geometry):
+        raise ValueError(f"geometry kind {spec.kind!r}: the plugin's factory returned {type(geometry).__name__}, "
+                         f"not a Geometry")
+    return geometry
 
 
 def build_layer(registry: Registry, spec) -> Layer:
@@ -58,6 +67,7 @@ def build_layer(registry: Registry, spec) -> Layer:
 class Setup:
     case: Case
     registry: Registry
+    geometry: Geometry
     layers: list[Layer]
     fluid: Fluid | None = None
     wall: WallSpace | None = None
@@ -74,20 +84,20 @@ class Setup:
         ``prescribed`` (what the case's coupler asks, :meth:`Coupler.fluid_wall`).
         """
         t0 = time.perf_counter()
+        geometry = build_geometry(registry, case.geometry)
         layers = [build_layer(registry, spec) for spec in case.layers]
         fluid = build_model(registry, "fluid", case.fluid) if case.fluid is not None else None
         g, m = case.geometry, case.mesh
         wall = stack = None
         if layers:
-            wall = WallSpace.build(layers, g.length, g.radius, m.nz, m.order, [spec.cells for spec in case.layers],
-                                   [spec.model for spec in case.layers])
+            wall = WallSpace.build(layers, geometry, g.length, g.radius, m.nz, m.order,
+                                   [spec.cells for spec in case.layers], [spec.model for spec in case.layers])
             stack = Stack.assemble(wall)
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
-            extra = {"reuse": case.reuse} if "reuse" in inspect.signature(fluid.setup).parameters else {}
-            fluid.setup(g.length, g.radius, m.nz, m.nr, m.order, m.grading, wall_mode,
-                        case.solver, line=line, **extra)
-        setup = cls(case=case, registry=registry, layers=layers, fluid=fluid, wall=wall,
+            fluid.setup(FluidSetup(geometry, g.length, g.radius, m.nz, m.nr, m.order, m.grading, wall_mode,
+                                   case.solver, case.reuse, line, {end: getattr(case.loads, end) for end in ENDS}))
+        setup = cls(case=case, registry=registry, geometry=geometry, layers=layers, fluid=fluid, wall=wall,
                     stack=stack)
         setup.timings["assembly"] += time.perf_counter() - t0
         return setup

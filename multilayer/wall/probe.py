@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from multilayer.geometry.contract import Geometry
 from multilayer.wall.checks import LayerError
 from multilayer.wall.layer import Layer
 from multilayer.wall.stack import WallSpace, layer_output
@@ -21,15 +22,18 @@ from multilayer.wall.stack import WallSpace, layer_output
 PROBE_NZ = 2
 
 
-def probe(layers: Sequence[Layer], names: Sequence[str], length: float, radius: float, order: int) -> dict[int, list[str]]:
-    """What is wrong with what each layer returns on a small wall, by position in the stack.
+def probe(layers: Sequence[Layer], names: Sequence[str], geometry: Geometry, length: float, radius: float,
+          order: int) -> dict[int, list[str]]:
+    """What is wrong with what each layer returns on a small wall in ``geometry``, by position in the stack.
 
     >>> from multilayer_plugins.linear_elastic import LinearElasticBand
+    >>> from multilayer_plugins.planar import Planar
     >>> from multilayer_plugins.thin_shell import KoiterFamilyLayer
-    >>> probe([KoiterFamilyLayer(1.0, 0.1, C1=1.0), LinearElasticBand(1.0, 0.1, 1.0, 1.0)], ["a", "b"], 6.0, 0.5, 2)
+    >>> layers = [KoiterFamilyLayer(1.0, 0.1, C1=1.0), LinearElasticBand(1.0, 0.1, 1.0, 1.0)]
+    >>> probe(layers, ["a", "b"], Planar(), 6.0, 0.5, 2)
     {}
     """
-    space = WallSpace.build(layers, length, radius, PROBE_NZ, order, [1] * len(layers), names)
+    space = WallSpace.build(layers, geometry, length, radius, PROBE_NZ, order, [1] * len(layers), names)
     found = {}
     for p in space.placements:
         try:

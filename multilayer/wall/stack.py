@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 import skfem
 
+from multilayer.geometry.contract import Geometry
 from multilayer.geometry.mesh import lagrange_tri, wall_mesh
 from multilayer.geometry.spaces import (
     BandSpace,
@@ -57,6 +58,7 @@ class Placement:
 class WallSpace:
     """DOFs of the whole wall and the maps from each line and band into them."""
 
+    geometry: Geometry  #: the measure of every integral on the wall
     length: float
     radius: float
     order: int
@@ -74,9 +76,9 @@ class WallSpace:
         self.restrictions = [P.T.tocsr() for P in self.prolongations]
 
     @classmethod
-    def build(cls, layers: Sequence[Layer], length: float, radius: float, nz: int, order: int,
+    def build(cls, layers: Sequence[Layer], geometry: Geometry, length: float, radius: float, nz: int, order: int,
               band_cells: Sequence[int | None] = (), names: Sequence[str] = ()) -> WallSpace:
-        """Place ``layers`` (lumen outward) and build the wall's spaces.
+        """Place ``layers`` (lumen outward) and build the wall's spaces in ``geometry``'s measure.
 
         ``band_cells[i]`` is the radial cell count of ``layers[i]`` when it is
         thick; ``names[i]`` its model name, for messages.
@@ -93,27 +95,27 @@ class WallSpace:
                 bands_spec.append((float(layer.thickness), int(cells)))
 
         if not bands_spec:
-            line = make_line_space(length, nz, order, radius)
+            line = make_line_space(length, nz, order, radius, geometry)
             eye = sp.identity(line.ndofs, format="csr")
-            return cls(length, radius, order, line.ndofs, [line], [eye], [], None, placements)
+            return cls(geometry, length, radius, order, line.ndofs, [line], [eye], [], None, placements)
 
         mesh, band_elements, edges = wall_mesh(length, radius, nz, bands_spec)
         elem = skfem.ElementVector(lagrange_tri(order))
-        basis = skfem.Basis(mesh, elem)
+        basis = geometry.weighted(skfem.Basis(mesh, elem))
         bands = [
-            BandSpace(basis=skfem.Basis(mesh, elem, elements=els), r_inner=a, r_outer=b,
-                      length=length, order=order)
+            BandSpace(basis=geometry.weighted(skfem.Basis(mesh, elem, elements=els)), r_inner=a, r_outer=b,
+                      length=length, order=order, geometry=geometry)
             for els, a, b in zip(band_elements, edges[:-1], edges[1:])
         ]
         r_dofs = basis.split_indices()[1]
         zr = basis.doflocs[:, r_dofs]
         lines, prolongations = [], []
         for r_line in edges:
-            line = make_line_space(length, nz, order, r_line)
+            line = make_line_space(length, nz, order, r_line, geometry)
             on = np.abs(zr[1] - r_line) < 1e-9 * max(r_line, 1.0)
             lines.append(line)
             prolongations.append(line_prolongation(line, r_dofs[on], zr[0, on], basis.N))
-        return cls(length, radius, order, int(basis.N), lines, prolongations, bands, basis, placements)
+        return cls(geometry, length, radius, order, int(basis.N), lines, prolongations, bands, basis, placements)
 
     # -- where things are ---------------------------------------------------
     def space_of(self, p: Placement) -> LineSpace | BandSpace:
@@ -128,7 +130,8 @@ class WallSpace:
         return prolongation_dofs(self.prolongations[i])
 
     def line_load(self, i: int) -> np.ndarray:
-        """∫ ψ dz on line i, in wall numbering: the work vector of a unit pressure."""
+        """∫ ψ dA on line i (the geometry's measure of the line), in wall numbering: the work vector of a unit
+        pressure."""
         line = self.lines[i]
         return self.prolongations[i] @ skfem.asm(_unit_load, line.basis)
 

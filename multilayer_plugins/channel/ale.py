@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import attrs
 import numpy as np
+
 from multilayer_plugins.channel.channel import Channel
 
 
@@ -26,7 +27,8 @@ class ALEFields:
     Every array has the shape (elements, quadrature points) of the channel's
     velocity basis, so it can be handed to a scikit-fem form as it is.
 
-    >>> ch = Channel.build(1.0, 0.5, 2, 2, order=1)
+    >>> from multilayer_plugins.planar import Planar
+    >>> ch = Channel.build(Planar(), 1.0, 0.5, 2, 2, order=1)
     >>> f = ALEFields.at(ch, 0.1 * np.ones(ch.line.ndofs), np.zeros(ch.line.ndofs))
     >>> float(f.J.min()), float(f.J.max()), float(abs(f.gz).max())
     (1.2, 1.2, 0.0)

@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 import skfem
 
+from multilayer.geometry.contract import Geometry
 from multilayer.geometry.mesh import channel_mesh
 from multilayer.geometry.spaces import LineSpace, line_prolongation, make_line_space
 
@@ -32,7 +33,8 @@ def line_sampling(line: LineSpace, z: np.ndarray, cell: np.ndarray) -> tuple[sp.
     ``cell`` is the index of the line element holding each point (points on
     a cell boundary may name either neighbour).
 
-    >>> line = make_line_space(2.0, 2, 2, 0.5)
+    >>> from multilayer_plugins.planar import Planar
+    >>> line = make_line_space(2.0, 2, 2, 0.5, Planar())
     >>> S, Sz = line_sampling(line, np.array([0.5, 1.5]), np.array([0, 1]))
     >>> eta = line.z ** 2
     >>> (S @ eta).tolist(), (Sz @ eta).tolist()
@@ -64,11 +66,13 @@ class Channel:
     ``velocity.N`` velocity DOFs (z and r components interleaved, as
     scikit-fem numbers a vector basis), then ``pressure.N`` pressure DOFs.
 
-    >>> ch = Channel.build(6.0, 0.5, nz=6, nr=2, order=2)
+    >>> from multilayer_plugins.planar import Planar
+    >>> ch = Channel.build(Planar(), 6.0, 0.5, nz=6, nr=2, order=2)
     >>> ch.line.ndofs, len(ch.wall_r), ch.prolongation.shape == (ch.velocity.N, ch.line.ndofs)
     (13, 13, True)
     """
 
+    geometry: Geometry  #: the measure every basis below carries in its quadrature weights
     length: float
     radius: float
     order: int
@@ -95,6 +99,7 @@ class Channel:
     @classmethod
     def build(
         cls,
+        geometry: Geometry,
         length: float,
         radius: float,
         nz: int,
@@ -103,7 +108,7 @@ class Channel:
         grading: float = 1.0,
         line: LineSpace | None = None,
     ) -> Channel:
-        """The channel of ``nz`` × ``nr`` cells (graded toward the wall) and its spaces.
+        """The channel of ``nz`` × ``nr`` cells (graded toward the wall) and its spaces, in ``geometry``'s measure.
 
         ``line`` is the interface line's space if the caller already has it
         (it must be the canonical one of :func:`multilayer.geometry.spaces.make_line_space`).
@@ -112,7 +117,8 @@ class Channel:
             raise ValueError(f"fluid element order must be 1 (MINI) or 2 (Taylor–Hood), got {order!r}")
         mesh = channel_mesh(length, radius, nz, nr, grading)
         velocity = skfem.Basis(mesh, skfem.ElementVector(VELOCITY_ELEMENTS[order]()), intorder=QUADRATURE_ORDER)
-        pressure = skfem.Basis(mesh, skfem.ElementTriP1(), quadrature=velocity.quadrature)
+        pressure = geometry.weighted(skfem.Basis(mesh, skfem.ElementTriP1(), quadrature=velocity.quadrature))
+        geometry.weighted(velocity)
         tol = 1e-9 * max(length, radius)
         facets = {
             name: mesh.facets_satisfying(test, boundaries_only=True)
@@ -121,8 +127,8 @@ class Channel:
                 ("outlet", lambda x: x[0] > length - tol),
             )
         }
-        inlet = skfem.FacetBasis(mesh, velocity.elem, facets=facets["inlet"])
-        outlet = skfem.FacetBasis(mesh, velocity.elem, facets=facets["outlet"])
+        inlet = geometry.weighted(skfem.FacetBasis(mesh, velocity.elem, facets=facets["inlet"]))
+        outlet = geometry.weighted(skfem.FacetBasis(mesh, velocity.elem, facets=facets["outlet"]))
 
         z, r = velocity.doflocs  # NaN at MINI bubbles: never on a boundary
         with np.errstate(invalid="ignore"):
@@ -137,8 +143,9 @@ class Channel:
         normal_r = np.intersect1d(comp_r, np.flatnonzero(on["axis"] | on["ends"]))
 
         if line is None:
-            line = make_line_space(length, nz, order, radius)
-        elif line.order != order or abs(line.radius - radius) > tol or abs(line.length - length) > tol:
+            line = make_line_space(length, nz, order, radius, geometry)
+        elif (line.order != order or abs(line.radius - radius) > tol or abs(line.length - length) > tol
+              or line.geometry is not geometry):
             raise ValueError("the interface line space does not match the channel")
         P = line_prolongation(line, wall_r, z[wall_r], velocity.N)
 
@@ -156,6 +163,7 @@ class Channel:
         end0 = int(np.argmin(line.z))
         end1 = int(np.argmax(line.z))
         return cls(
+            geometry=geometry,
             length=length,
             radius=radius,
             order=order,

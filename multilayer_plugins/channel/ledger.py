@@ -13,12 +13,12 @@ real check of the step (docs/performance.md, "The ledger").
 from __future__ import annotations
 
 import numpy as np
-from multilayer_plugins.channel import forms
-from multilayer_plugins.channel.ale import ALEFields
-from multilayer_plugins.channel.channel import Channel
 from skfem.assembly.form.form import FormExtraParams
 
 from multilayer.numerics.assembly.batched import BatchedForm
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
 
 
 def fluid_kinetic(channel: Channel, density: float, J: np.ndarray, u: np.ndarray) -> float:

@@ -13,16 +13,16 @@ from collections.abc import Callable
 from typing import ClassVar
 
 import numpy as np
+
+from multilayer.fluid.contract import Fluid, FluidSetup
+from multilayer.geometry.spaces import LineSpace
+from multilayer.numerics.linsolve import SolverStats
+from multilayer.plugin.records import Param
 from multilayer_plugins.channel import probes
 from multilayer_plugins.channel.ale import ALEFields
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ledger import fluid_kinetic
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
-
-from multilayer.fluid.contract import Fluid
-from multilayer.geometry.spaces import LineSpace
-from multilayer.numerics.linsolve import Reuse, SolverStats
-from multilayer.plugin.records import Param
 
 #: The parameters of every channel fluid, for its plugin record.
 PARAMS = (
@@ -43,13 +43,17 @@ class ChannelFluid(Fluid):
 
     Examples
     --------
-    >>> from multilayer.fluid.contract import Domain
+    >>> from multilayer.fluid.contract import Domain, FluidSetup
+    >>> from multilayer.functions.loads import ConstantPressure
     >>> from multilayer.numerics.timescheme import SCHEMES
+    >>> from multilayer_plugins.planar import Planar
+    >>> from multilayer_plugins.pressure import PressureEnd
     >>> fluid = NavierStokes(density=1.0, viscosity=0.035)
-    >>> step = fluid.setup(length=1.0, radius=0.5, nz=2, nr=2, order=2, wall="rigid")
+    >>> ends = {"inlet": PressureEnd(ConstantPressure(10.0))}
+    >>> step = fluid.setup(FluidSetup(Planar(), 1.0, 0.5, nz=2, nr=2, order=2, wall="rigid", ends=ends))
     >>> state = fluid.initial_state()
     >>> still = Domain.still(fluid.line.ndofs)
-    >>> sol, terms = fluid.step([state], still, SCHEMES["backward-euler"], 1e-3, p_in=10.0)
+    >>> sol, terms = fluid.step([state], still, SCHEMES["backward-euler"], 1e-3, (0.0, 1e-3))
     >>> sol.state.u.shape == (step.channel.nu,), abs(terms["a2.residual"]) < 1e-12 * terms["a2.scale"]
     (True, True)
     """
@@ -68,29 +72,18 @@ class ChannelFluid(Fluid):
     def __repr__(self) -> str:
         return f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r})"
 
-    def setup(
-        self,
-        length: float,
-        radius: float,
-        nz: int,
-        nr: int,
-        order: int = 2,
-        grading: float = 1.0,
-        wall: str = "coupled",
-        solver: str = "superlu",
-        line: LineSpace | None = None,
-        reuse: Reuse = Reuse(),
-    ) -> FluidStep:
-        """Discretize: the channel L × R (cm) in nz × nr cells, element ``order``.
+    def setup(self, spec: FluidSetup) -> FluidStep:
+        """Discretize for ``spec``: the channel L × R (cm) in nz × nr cells, element ``order``, in its geometry.
 
-        ``wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
-        :mod:`multilayer_plugins.channel.step`); ``line`` is the interface line's space
-        when the caller already has it; ``reuse`` when a changing matrix is
-        refactorized (:class:`multilayer.numerics.linsolve.Reuse`).  Returns the discretization, which is
-        also kept on the fluid for the methods below.
+        ``spec.wall`` is ``"coupled"``, ``"rigid"`` or ``"prescribed"`` (see
+        :mod:`multilayer_plugins.channel.step`); ``spec.ends`` the conditions of
+        the open ends.  Returns the discretization, which is also kept on the
+        fluid for the methods below.
         """
-        channel = Channel.build(length, radius, nz, nr, order, grading, line)
-        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, wall, solver, reuse)
+        channel = Channel.build(spec.geometry, spec.length, spec.radius, spec.nz, spec.nr, spec.order, spec.grading,
+                                spec.line)
+        self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
+                                   spec.reuse, spec.ends)
         return self._discrete
 
     @property
@@ -138,11 +131,11 @@ class ChannelFluid(Fluid):
                 return velocity(zh, rh * (R + probes.wall_displacement(ch, eta, zh)) / R)
 
             u = ch.interpolate(on_reference)
-        return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u))
+        return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u), self.discrete.ends.initial_state())
 
-    def system(self, history, domain, scheme, dt, p_in=0.0, p_out=0.0, interface=None) -> FluidSystem:
+    def system(self, history, domain, scheme, dt, times, interface=None) -> FluidSystem:
         """See :meth:`multilayer_plugins.channel.step.FluidStep.system`."""
-        return self.discrete.system(history, domain, scheme, dt, p_in, p_out, interface)
+        return self.discrete.system(history, domain, scheme, dt, times, interface)
 
     def matrix(self, system: FluidSystem):
         """(A, b, fixed DOFs, fixed values) of ``system``, A in CSR with the interface terms."""
@@ -165,6 +158,10 @@ class ChannelFluid(Fluid):
 
     def wall_velocity(self, state: FluidState) -> np.ndarray:
         return state.v
+
+    def energy(self, state: FluidState, eta: np.ndarray | None = None) -> dict[str, float]:
+        """``kinetic.fluid`` and what the ends' conditions store (a Windkessel's capacitor), by ledger column."""
+        return {"kinetic.fluid": self.kinetic_energy(state, eta), **self.discrete.ends.energy(state.ends)}
 
     def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
         """½ρ_f ∫ J|u|² on the domain of ``eta``."""

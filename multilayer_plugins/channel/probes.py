@@ -9,6 +9,7 @@ move, only J(z) of a flow rate changes with the wall.
 from __future__ import annotations
 
 import numpy as np
+
 from multilayer_plugins.channel.channel import Channel
 
 
@@ -52,23 +53,25 @@ def section_nodes(channel: Channel, z: float) -> np.ndarray:
 def flow_rate_sampler(channel: Channel, z: float):
     """Q(z) as a function of (u, η), its sampling built once.
 
-    Q(z) = ∫₀^{R+η(z)} u_z dr = J(z) ∫₀^R u_z(z, r̂) dr̂ (cm²/s), exact for the
-    element: Gauss–Legendre with three points between consecutive crossings
-    of mesh edges integrates P2 and P1b velocities exactly.  Neither the
-    points nor the weights depend on η, so only J(z) changes with the wall.
+    Q(z) = ∫₀^{R+η(z)} u_z weight(r) dr = J(z)^{1+k} ∫₀^R u_z(z, r̂) weight(r̂) dr̂ in the
+    geometry's measure weight(r) = c rᵏ (cm²/s per unit depth in the planar
+    channel), exact for the element when the weight is a constant:
+    Gauss–Legendre with three points between consecutive crossings of mesh
+    edges integrates P2 and P1b velocities exactly.  Neither the points nor
+    the weights depend on η, so only J(z) changes with the wall.
     """
     nodes = section_nodes(channel, z)
     g, wg = np.polynomial.legendre.leggauss(3)
     a, b = nodes[:-1, None], nodes[1:, None]
     rhat = (0.5 * (a + b) + 0.5 * (b - a) * g).ravel()
-    weights = (0.5 * (b - a) * wg).ravel()
+    weights = (0.5 * (b - a) * wg).ravel() * channel.geometry.weight(rhat)
     x = np.vstack([np.full_like(rhat, z), rhat])
     row = weights @ channel.velocity.probes(x).tocsr()[: len(rhat)]  # the u_z rows
     eta_row = channel.line.basis.probes(np.array([[z]])).tocsr()
     R = channel.radius
 
     def sample(u: np.ndarray, eta: np.ndarray) -> float:
-        return (1.0 + float((eta_row @ eta)[0]) / R) * float(row @ u)
+        return channel.geometry.stretch(1.0 + float((eta_row @ eta)[0]) / R) * float(row @ u)
 
     return sample
 

@@ -8,8 +8,11 @@ on the wall, such that
 
     ρ_f/Δt mass_J(Σ α_k u^{n+1−k}, q) + ρ_f advection_skew(ū, q) + ρ_f moving_domain(ū, q)
   + 2μ viscous(ū, q) − ∫ J p̄ ∇^η·q + ∫ J π ∇^η·ū + [R v̄ − r]·ψ
-  = P̄_in ∫_Γin J q_z − P̄_out ∫_Γout J q_z.
+  + Σ_e R_e (∫_Γe J q·n)(∫_Γe J ū·n) = − Σ_e P_e ∫_Γe J q·n,
 
+every integral in the geometry's measure, where each open end e (inlet,
+outlet) has the mean pressure p̄_e = P_e + R_e Q̄_e its condition gives
+(:mod:`multilayer_plugins.channel.ends`; a prescribed pressure has R_e = 0).
 The old levels go to the right-hand side, so the matrix is
 (α₀/β₀) ρ_f/Δt mass_J + the rest (a backward-Euler matrix of step Δt β₀/α₀).
 [R v̄ − r] is what a coupler puts on the wall's u_r rows (line numbering):
@@ -34,16 +37,14 @@ has a constant matrix: it is factorized once per Δt.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import attrs
 import numpy as np
 import scipy.sparse as sp
-from multilayer_plugins.channel import forms
-from multilayer_plugins.channel.ale import ALEFields
-from multilayer_plugins.channel.channel import Channel
-from multilayer_plugins.channel.ledger import Quadrature
 
+from multilayer.boundary.contract import BoundaryCondition, EndTraction
 from multilayer.fluid.contract import Domain, Interface
 from multilayer.geometry.spaces import prolongation_dofs
 from multilayer.numerics.assembly.batched import BatchedForm, SkewPart
@@ -56,6 +57,11 @@ from multilayer.numerics.linsolve import (
     factorize,
 )
 from multilayer.numerics.timescheme import TimeScheme, levels
+from multilayer_plugins.channel import forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.ends import Ends
+from multilayer_plugins.channel.ledger import Quadrature
 
 WALL_MODES = ("coupled", "rigid", "prescribed")
 
@@ -73,6 +79,8 @@ class FluidState:
     u: np.ndarray
     p: np.ndarray
     v: np.ndarray
+    #: the state of each end's condition (None for one without state), by end
+    ends: Mapping[str, Any] = attrs.field(factory=dict)
 
 
 @attrs.frozen(eq=False)
@@ -99,9 +107,11 @@ class FluidSystem:
     scheme: TimeScheme
     dt: float
     history: tuple[FluidState, ...]
-    p_in: float
-    p_out: float
+    #: each end's mean pressure over the step, p̄ = P + R Q̄
+    tractions: Mapping[str, EndTraction]
     interface: Interface | None
+    #: what a constant matrix is cached by: the mass coefficient and the implicit ends' resistances
+    key: tuple[float, ...]
     #: what stands for this system's matrix in the solver (kept by ``attrs.evolve``: a prescribed wall
     #: velocity changes the right-hand side only, so the same factors serve)
     token: object = attrs.field(factory=object)
@@ -132,10 +142,13 @@ class FluidStep:
         A backend of :mod:`multilayer.numerics.linsolve`.
     reuse : Reuse
         When a changing matrix is refactorized (:class:`multilayer.numerics.linsolve.Reuse`).
+    ends : mapping
+        The condition of each open end (``inlet``, ``outlet``); a missing end is traction-free.
     """
 
     def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
-                 wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse()):
+                 wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse(),
+                 ends: Mapping[str, BoundaryCondition] | None = None):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
         self.channel = channel
@@ -154,7 +167,9 @@ class FluidStep:
         self._uu = BatchedForm(ub)
         self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
-        self.pattern = Pattern((n, n), [uu, pu, pu[::-1]])
+        self.ends = Ends(channel, ends or {})
+        self.pattern = Pattern((n, n), [uu, pu, pu[::-1], *self.ends.entries()])
+        self.ends.place(self.pattern)
         # the data array of a step: velocity block, divergence rows, and their negated transpose
         self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
                                           self.pattern.slots(*pu[::-1])], scales=[1.0, 1.0, -1.0])
@@ -170,8 +185,6 @@ class FluidStep:
         self._block_fd = self.pattern.block(self.free, self.fixed)
 
         self._quadrature = Quadrature(self._uu, density)
-        self._load_in = forms.dynamic_pressure.assemble(channel.inlet, J=1.0)
-        self._load_out = forms.dynamic_pressure.assemble(channel.outlet, J=1.0)
         self._rigid = ALEFields.rigid(channel)
         self._static: dict[float, tuple] = {}  # rigid wall: element data of the geometry part, per mass coefficient
         self._constant: dict[float, tuple[np.ndarray, Factorized]] = {}  # Stokes, rigid: data and LU
@@ -254,12 +267,13 @@ class FluidStep:
             raise ValueError("a prescribed wall motion must vanish at z = 0 and z = L (u_r = 0 there)")
 
     def system(self, history: Sequence[FluidState], domain: Domain, scheme: TimeScheme, dt: float,
-               p_in: float = 0.0, p_out: float = 0.0, interface: Interface | None = None) -> FluidSystem:
-        """Assemble the step's system on ``domain`` (see the module docstring).
+               times: tuple[float, float], interface: Interface | None = None) -> FluidSystem:
+        """Assemble the step [tⁿ, tⁿ⁺¹] = ``times`` on ``domain`` (see the module docstring).
 
         ``history`` holds uⁿ, u^{n−1}, ... (newest first; padded with the
-        oldest when a multistep scheme wants more); ``p_in``/``p_out`` are the
-        loads averaged over the scheme's window (dyn/cm²).
+        oldest when a multistep scheme wants more).  Each end's condition gives
+        its mean pressure over the scheme's window of the step
+        (:mod:`multilayer_plugins.channel.ends`).
         """
         if not dt > 0.0:
             raise ValueError(f"time step must be > 0 s, got {dt!r}")
@@ -269,7 +283,8 @@ class FluidStep:
         hist = tuple(levels(history[0], history[1:], scheme.old_levels))
         fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, domain.eta, domain.velocity)
         mass_coefficient = scheme.inertia * self.density / dt
-        key = (mass_coefficient,)
+        tractions = self.ends.tractions(scheme.load_window(*times), dt, scheme, [s.ends for s in hist])
+        key = (mass_coefficient, *self.ends.resistances(tractions))
         constant = self._constant.get(key) if self.constant_matrix else None
         if constant is not None:
             own = constant[0]
@@ -280,6 +295,7 @@ class FluidStep:
                 a[1] -= fields.wr
             velocity, div = self._element_data(fields, mass_coefficient, a)
             own = self._fill(velocity, div, div)
+            self.ends.add_matrix(own, tractions, fields)
         data = own
         if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
             if self._with_interface is None:
@@ -291,7 +307,7 @@ class FluidStep:
         own_rhs = np.zeros(ch.ndofs)
         h = scheme.history([s.u for s in hist])
         own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply([(1.0, forms.mass_J, {"J": fields.J})], h)
-        own_rhs[: ch.nu] += p_in * fields.J_in * self._load_in + p_out * fields.J_out * self._load_out
+        self.ends.add_rhs(own_rhs, tractions, fields)
         rhs = own_rhs
         if interface is not None:
             rhs = own_rhs.copy()
@@ -302,7 +318,7 @@ class FluidStep:
             fixed_values[ch.normal_r] = 0.0
         self.assembly_s += time.perf_counter() - t0
         return FluidSystem(data, own, rhs, own_rhs, self.fixed, fixed_values[self.fixed], fields, domain, scheme,
-                           dt, hist, p_in, p_out, interface)
+                           dt, hist, tractions, interface, key)
 
     # -- solving --------------------------------------------------------------
     def solve(self, system: FluidSystem) -> Solution:
@@ -322,7 +338,7 @@ class FluidStep:
         x = np.zeros(self.channel.ndofs)
         x[self.fixed] = system.fixed_values
         if self.constant_matrix:
-            key = (system.scheme.inertia * self.density / system.dt,)
+            key = system.key
             if key not in self._constant:
                 self._constant[key] = (system.own.copy(), factorize(self._block_ff.matrix(system.data), self.stats,
                                                              self.solver))
@@ -355,7 +371,9 @@ class FluidStep:
         """The new state from the solved x̄ = (ū, p̄): u^{n+1} from the scheme, v its wall trace."""
         nu = self.channel.nu
         u = system.scheme.new_level(mean[:nu], [s.u for s in system.history])
-        return Solution(mean, FluidState(u, mean[nu:].copy(), self.channel.wall_trace(u)))
+        ends = self.ends.advance(system.tractions, self.ends.fluxes(mean[:nu], system.fields), system.dt,
+                                 system.scheme, [s.ends for s in system.history])
+        return Solution(mean, FluidState(u, mean[nu:].copy(), self.channel.wall_trace(u), ends))
 
     def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
         """The fluid's own residual A x̄ − b on the wall's u_r rows, as a line vector.
@@ -408,17 +426,25 @@ class FluidStep:
         geometric = (S.stored(q(J_new - fields.J), us) - S.stored(q(J_old - fields.J), us[1:])
                      - dt * quad.kinetic(fields.dJdt, quad.values(ubar)))
         strain = quad.strain_squared(ubar, fields)
-        # Q_in = −∫_Γin J u·n, Q_out = ∫_Γout J u·n: the load vectors are −∫ q·n on each end
-        q_in = fields.J_in * float(self._load_in @ ubar)
-        q_out = -fields.J_out * float(self._load_out @ ubar)
+        # each end's outward flux Q̄ = ∫ J ū·n, and what its condition makes of the power −Δt p̄ Q̄ it hands the fluid
+        fluxes = self.ends.fluxes(ubar, fields)
+        old_ends, new_ends = system.history[0].ends, solution.state.ends
+        end_work, end_dissipation, end_power = {}, {}, {}
+        for end, condition in self.ends.conditions.items():
+            traction, flux = system.tractions[end], fluxes[end]
+            work, dissipation = condition.ledger(end, traction, flux, dt, old_ends.get(end), new_ends.get(end))
+            end_work.update(work)
+            end_dissipation.update(dissipation)
+            end_power[end] = -dt * traction.mean(flux) * flux
         terms = {
             "kinetic.fluid": stored_new,
             "kinetic.fluid_before": stored_old,
             "dissipation.viscous.fluid": 2.0 * self.viscosity * dt * strain,
             "dissipation.numerical.fluid": S.numerical(q(fields.J), us),
             "dissipation.geometric.fluid": -geometric,
-            "work.inlet": dt * system.p_in * q_in,
-            "work.outlet": -dt * system.p_out * q_out,
+            **end_work,
+            **end_dissipation,
+            **self.ends.energy(new_ends),
         }
         if self.wall == "prescribed":
             A = self.pattern.matrix(system.data)
@@ -428,7 +454,7 @@ class FluidStep:
             vbar = ch.wall_trace(ubar)
             interface = dt * float(vbar @ (system.interface.matrix @ vbar - system.interface.rhs))
         after = stored_new + terms["dissipation.numerical.fluid"] + terms["dissipation.viscous.fluid"] + interface
-        before = stored_old + terms["work.inlet"] + terms["work.outlet"] + terms.get("work.wall", 0.0) + geometric
+        before = stored_old + end_power["inlet"] + end_power["outlet"] + terms.get("work.wall", 0.0) + geometric
         terms["interface.power"] = interface
         terms["a2.residual"] = after - before
         terms["a2.scale"] = max(abs(after), abs(before), 1e-300)

@@ -1,0 +1,1 @@
+"""Boundary conditions: the contract of an open end of the fluid (inlet, outlet)."""

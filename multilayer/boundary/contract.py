@@ -1,0 +1,125 @@
+"""The boundary-condition contract: what an open end of the fluid (inlet, outlet) imposes.
+
+The fluid asks each end's condition, every step, for the end's mean normal
+stress as an affine function of the flux through it,
+
+    p̄ = pressure + resistance · Q̄,
+
+where Q̄ is the **outward** flux through the end of the step's test-level
+velocity ū, measured by the geometry (∫ ū·n dA: cm²/s per unit depth in a
+planar channel, cm³/s in a tube).  A prescribed pressure has no resistance;
+a resistance or a Windkessel outlet, whose pressure follows the flow, has
+one, and the fluid then carries the term R (∫ q·n)(∫ ū·n) in its matrix:
+implicit, no sub-iterations (docs/theory.md, "Boundary conditions").
+
+A condition may have its own state (a Windkessel's capacitor pressure): a
+value the fluid keeps in its state, one per end, that the condition
+advances from the step's flux (:meth:`BoundaryCondition.advance`) and whose
+stored energy it reports (:meth:`BoundaryCondition.energy`).  The energy
+the end exchanges with the fluid over a step, −Δt p̄ Q̄, it splits into
+work put in by its sources, energy dissipated and the change of its stored
+energy (:meth:`BoundaryCondition.ledger`); the runner's ledger takes them as
+columns.  Couplers pass conditions through without knowing their kind.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import attrs
+
+
+@attrs.frozen
+class EndTraction:
+    """What an end imposes over one step: p̄ = ``pressure`` + ``resistance`` · Q̄ (Q̄ outward).
+
+    ``pressure`` in dyn/cm²; ``resistance`` in dyn·s/cm⁵ in a tube (dyn·s/cm⁴
+    per unit depth in a planar channel), ≥ 0 for a dissipative end.
+    """
+
+    pressure: float
+    resistance: float = 0.0
+
+    def mean(self, flux: float) -> float:
+        """p̄ for the outward flux ``flux``."""
+        return self.pressure + self.resistance * flux
+
+
+@attrs.frozen
+class BuildContext:
+    """What a condition's factory may need beyond its parameters (``BoundaryPlugin(context=True)``).
+
+    ``path`` is the key path of the end in the case file (``loads.inlet``),
+    for messages; ``spec`` the end's value as the case writes it (a number,
+    a string or a table); ``base_dir`` the folder relative file names are
+    read from; ``constants`` the symbols a formula may use (L, R, H); ``end``
+    the run's end time (s), over which a function of t must be finite.
+    """
+
+    path: str
+    spec: Any = None
+    base_dir: str = "."
+    constants: Mapping[str, float] = attrs.field(factory=dict)
+    end: float = 1.0
+
+
+class BoundaryCondition(ABC):
+    """The condition on one open end of the fluid.
+
+    Subclass it, give :meth:`traction` (and, for a condition with memory,
+    :meth:`initial_state`, :meth:`advance`, :meth:`energy`), and register it
+    as a boundary plugin (``multilayer_boundaries``); a case chooses it as
+    ``[loads] outlet = {kind = "my-condition", ...}``.
+    """
+
+    #: True when the end's pressure may depend on its flux (a resistance): the fluid's system then holds
+    #: the end's rank-one term, so its sparsity pattern couples the end's DOFs
+    implicit: ClassVar[bool] = False
+
+    def initial_state(self) -> Any:
+        """The condition's own state at t = 0 (None: it has none)."""
+        return None
+
+    @abstractmethod
+    def traction(self, window: tuple[float, float], dt: float, scheme: Any, history: Sequence[Any]) -> EndTraction:
+        """p̄ of the step as pressure + resistance · Q̄.
+
+        ``window`` is the interval the scheme averages loads over (the step's
+        [tⁿ, tⁿ⁺¹] for every scheme here); ``history`` the condition's states
+        at tⁿ, tⁿ⁻¹, ... (newest first), for a condition discretized by the
+        step's time ``scheme`` (:class:`multilayer.numerics.timescheme.TimeScheme`).
+        """
+
+    def advance(self, traction: EndTraction, flux: float, dt: float, scheme: Any, history: Sequence[Any]) -> Any:
+        """The state at tⁿ⁺¹ from the step's outward flux Q̄ (a condition without state: None)."""
+        return None
+
+    def energy(self, end: str, state: Any) -> dict[str, float]:
+        """Energy stored in the condition in ``state``, by ledger column (none by default)."""
+        return {}
+
+    def ledger(self, end: str, traction: EndTraction, flux: float, dt: float, old: Any, new: Any
+               ) -> tuple[dict[str, float], dict[str, float]]:
+        """(work, dissipation) of the end over the step, by ledger column.
+
+        They satisfy work − dissipation − (stored(new) − stored(old)) = −Δt p̄ Q̄,
+        the power the fluid receives through the end.  By default the
+        pressure does work −Δt·pressure·Q̄ (column ``work.<end>``) and the
+        resistance dissipates Δt·R·Q̄² (``dissipation.<end>.resistance``).
+        """
+        work = {f"work.{end}": -dt * traction.pressure * flux}
+        if traction.resistance == 0.0:
+            return work, {}
+        return work, {f"dissipation.{end}.resistance": dt * traction.resistance * flux * flux}
+
+    def at_rest(self) -> bool:
+        """True when the end imposes nothing at all (p ≡ 0, no resistance): a coupler that applies no end
+        loads accepts it."""
+        return False
+
+    def resolved(self) -> dict[str, Any] | None:
+        """The condition as case-file data with defaults filled, when it is more than its kind and
+        parameters (e.g. a table's SHA-256); None: its kind and parameters say it all."""
+        return None

@@ -1,0 +1,76 @@
+"""The schemas of a case file's core sections: their keys, types, bounds and defaults.
+
+The plugins' own parameters are checked against the schemas the plugins register.
+"""
+
+from __future__ import annotations
+
+from multilayer.case.ends import END_KEYS
+from multilayer.numerics.linsolve import BACKENDS, FACTORS, REUSE_MODES, Reuse
+from multilayer.plugin.records import Param
+
+SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver",
+            "sweep")
+
+GEOMETRY = (
+    Param("length", "L", "cm", gt=0.0, doc="channel length"),
+    Param("radius", "R", "cm", gt=0.0, doc="reference radius of the lumen"),
+    Param("kind", type=str, default="planar", doc="the geometry plugin: what the (z, r) plane stands for"),
+)
+MESH = (
+    Param("nz", type=int, ge=1, doc="cells along z, shared by every field"),
+    Param("nr", type=int, ge=1, doc="fluid cells across the lumen"),
+    Param("order", type=int, choices=(1, 2), doc="polynomial order of every field"),
+    Param("grading", default=1.0, ge=1.0, doc="fluid refinement toward the wall (1 = uniform)"),
+)
+TIME = (
+    Param("end", "T", "s", gt=0.0, doc="final time"),
+    Param("dt", "Δt", "s", gt=0.0, doc="time step"),
+)
+
+
+#: radial cells of a thick layer: a core key, not a plugin parameter
+CELLS = Param("cells", type=int, ge=1, default=4, doc="radial cells of a thick band")
+WALL_LOAD_KEYS = ("external", "interface")
+LOAD_KEYS = (*END_KEYS, *WALL_LOAD_KEYS)
+QUANTITIES = ("eta", "v", "d_z", "d_r", "u_z", "u_r", "p", "flow_rate")
+FLUID_QUANTITIES = ("u_z", "u_r", "p", "flow_rate")
+LINE_QUANTITIES = ("eta", "v")
+POINT_QUANTITIES = ("d_z", "d_r", "u_z", "u_r", "p")
+PROBE = (
+    Param("name", type=str, default=None, doc="column name in series.csv"),
+    Param("quantity", type=str, choices=QUANTITIES, doc="what is measured"),
+    Param("z", "z", "cm", doc="axial position"),
+    Param("r", "r", "cm", default=None,
+          doc="radial position in the reference configuration: Lagrangian in the wall, r̂ of the ALE map in the fluid"),
+    Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
+)
+OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
+SOLVER = (
+    Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
+    Param("reuse", type=str, default="krylov", choices=REUSE_MODES,
+          doc="a changing matrix: 'krylov' (GMRES preconditioned by an earlier factorization) or 'none' "
+              "(factorize every step)"),
+    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1,
+          doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
+    Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
+          doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
+    Param("factors", type=str, default=Reuse().factors, choices=FACTORS,
+          doc="precision of a changing matrix's factorizations: 'double', or 'single' (half their memory, "
+              "faster; every solve by GMRES on them to the same tolerance; SuperLU only)"),
+    Param("factorization_cost", default=Reuse().factorization_cost, gt=0.0,
+          doc="a factorization's cost in GMRES iterations: the iterations held factors cost beyond what they "
+              "needed when young are added up, and at this sum they are replaced (reuse = 'krylov'; default: "
+              "14 up to 70k unknowns, then growing like their square root; a very large value: only at "
+              "max_iterations)"),
+    Param("threads", type=int, default=1, ge=0,
+          doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
+    Param("max_displacement", "", "R", default=0.5, gt=0.0,
+          doc="stop the run when |η| on the lumen exceeds this fraction of R"),
+    Param("energy_margin", default=0.01, gt=0.0,
+          doc="stop the run when the energy exceeds initial energy + work by this fraction of their scale"),
+)
+
+
+#: relative tolerance on end/dt being a whole number of steps
+STEPS_TOL = 1e-6
