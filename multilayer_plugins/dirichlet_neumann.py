@@ -35,6 +35,7 @@ from multilayer.coupling.contract import Coupler, SchemeFailure, StepReport
 from multilayer.coupling.kit import (
     coupled_case_problems,
     external_force,
+    fluid_columns,
     fluid_groups,
     predicted_domain,
     window_loads,
@@ -117,7 +118,8 @@ class DirichletNeumann(Coupler):
             dissipation = {**w.dissipation, **dissipation_f,
                            "dissipation.interface": -(work_f["work.wall"] + w.work["work.fluid"])}
             yield state, StepReport({**w.stored, **stored_f}, work, dissipation,
-                                    {"iterations": float(iterations), "interface.residual": residual})
+                                    {"iterations": float(iterations), "interface.residual": residual,
+                                     **fluid_columns(terms)})
 
 
 class DirichletNeumannExplicit(DirichletNeumann):

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from multilayer.coupling.contract import Coupler, StepReport
-from multilayer.coupling.kit import fluid_groups
+from multilayer.coupling.kit import fluid_columns, fluid_groups
 from multilayer.fluid.contract import Domain
 from multilayer.numerics.timescheme import SCHEMES, scheme_param
 from multilayer.plugin.hookspecs import hookimpl
@@ -68,7 +68,8 @@ class FluidOnly(Coupler):
             state = state.then(S.old_levels, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
             stored, work, dissipation = fluid_groups(f)
             yield state, StepReport(stored, work, dissipation,
-                                    {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"]})
+                                    {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"],
+                                     **fluid_columns(f)})
 
 
 @hookimpl

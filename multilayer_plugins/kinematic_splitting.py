@@ -37,6 +37,7 @@ from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
     coupled_case_problems,
     external_force,
+    fluid_columns,
     fluid_groups,
     lumen_layers,
     lumen_mass,
@@ -152,6 +153,7 @@ class KinematicSplitting(Coupler):
         return StepReport(stored, work, dissipation, {
             "energy.relative_residual.A1": relative(a1_residual, max(abs(after), abs(before), 1e-300)),
             "energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),
+            **fluid_columns(f),
         })
 
 

@@ -27,6 +27,7 @@ from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
     coupled_case_problems,
     external_force,
+    fluid_columns,
     fluid_groups,
     predicted_domain,
     window_loads,
@@ -102,7 +103,8 @@ class Monolithic(Coupler):
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=fluid.wall_velocity(solution.state), eta=eta_new)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
-            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, {**w.dissipation, **dissipation_f})
+            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, {**w.dissipation, **dissipation_f},
+                                    fluid_columns(terms))
 
 
 class Layout:

@@ -114,6 +114,11 @@ class BoundaryCondition(ABC):
             return work, {}
         return work, {f"dissipation.{end}.resistance": dt * traction.resistance * flux * flux}
 
+    def columns(self, end: str, state: Any) -> dict[str, float]:
+        """Values of the condition's own state to write in ``series.csv`` (e.g. a capacitor's pressure,
+        ``end.<end>.P_c``); the fluid writes each end's flux and mean pressure (``end.<end>.Q``, ``.p``)."""
+        return {}
+
     def at_rest(self) -> bool:
         """True when the end imposes nothing at all (p ≡ 0, no resistance): a coupler that applies no end
         loads accepts it."""

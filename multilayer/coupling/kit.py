@@ -79,6 +79,11 @@ def fluid_groups(terms: Mapping[str, float], numerical: bool = True) -> tuple[di
     return stored, work, dissipation
 
 
+def fluid_columns(terms: Mapping[str, float]) -> dict[str, float]:
+    """The fluid's columns that are neither energy nor work: each end's flux, mean pressure and state (``end.*``)."""
+    return {k: v for k, v in terms.items() if k.startswith("end.")}
+
+
 def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Domain:
     """The explicit domain of a step whose wall is not known yet (monolithic, Dirichlet–Neumann).
 

@@ -429,13 +429,15 @@ class FluidStep:
         # each end's outward flux Q̄ = ∫ J ū·n, and what its condition makes of the power −Δt p̄ Q̄ it hands the fluid
         fluxes = self.ends.fluxes(ubar, fields)
         old_ends, new_ends = system.history[0].ends, solution.state.ends
-        end_work, end_dissipation, end_power = {}, {}, {}
+        end_work, end_dissipation, end_power, end_columns = {}, {}, {}, {}
         for end, condition in self.ends.conditions.items():
             traction, flux = system.tractions[end], fluxes[end]
             work, dissipation = condition.ledger(end, traction, flux, dt, old_ends.get(end), new_ends.get(end))
             end_work.update(work)
             end_dissipation.update(dissipation)
             end_power[end] = -dt * traction.mean(flux) * flux
+            end_columns.update({f"end.{end}.Q": flux, f"end.{end}.p": traction.mean(flux),
+                                **condition.columns(end, new_ends.get(end))})
         terms = {
             "kinetic.fluid": stored_new,
             "kinetic.fluid_before": stored_old,
@@ -445,6 +447,7 @@ class FluidStep:
             **end_work,
             **end_dissipation,
             **self.ends.energy(new_ends),
+            **end_columns,
         }
         if self.wall == "prescribed":
             A = self.pattern.matrix(system.data)
