@@ -20,7 +20,12 @@ compressed by the factor given on the command line (default 40, so a cycle
 lasts 0.02 s), because the compliant channel of theory §9 is 6 cm long and a
 full 0.8 s cycle at Δt = 1e-4 would take 8000 steps per beat.
 
-    python scripts/aortic_waveform.py [compression]
+    python scripts/aortic_waveform.py [compression] [file]
+
+writes ``cases/data/aortic-pressure.csv`` (compression 40, the bundled
+``physiological-waveform`` case) or the named file in ``cases/data/``; the
+RCR-outlet case ``physiological-rcr`` uses the physical cycle,
+``python scripts/aortic_waveform.py 1 aortic-pressure-0.8s.csv``.
 """
 
 from __future__ import annotations
@@ -53,7 +58,8 @@ def main(argv: list[str]) -> None:
     s = np.arange(POINTS) / POINTS
     t = s * CYCLE / compression
     p = waveform(s)
-    out = Path(__file__).parents[1] / "cases" / "data" / "aortic-pressure.csv"
+    name = argv[1] if len(argv) > 1 else "aortic-pressure.csv"
+    out = Path(__file__).parents[1] / "cases" / "data" / name
     lines = [f"# aortic-like pressure cycle written by scripts/aortic_waveform.py (compression {compression:g}):",
              f"# one {CYCLE:g} s cycle shown in {CYCLE / compression:g} s; p in mmHg (80-120)",
              "t,p"]

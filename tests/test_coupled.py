@@ -28,7 +28,7 @@ SECOND_ORDER = ("splitting-cn", "monolithic-cn", "monolithic-bdf2")
 #: with the classic partitioned coupler that is stable on every bundled case (tests/test_partitioned.py has the rest)
 LEDGER = {**COUPLERS, "dn-implicit": '{model="dirichlet-neumann-implicit"}'}
 PROBES = [f"eta_z{k}" for k in (1, 2, 3, 4, 5)]
-COARSE = ("mesh.nz=12", "mesh.nr=3", "time.end=0.002")
+COARSE = ("mesh.nz=12", "mesh.nr=3", "time.dt=1e-4", "time.end=0.002")
 
 
 def run(case, out, *sets):
