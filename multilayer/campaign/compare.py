@@ -6,28 +6,21 @@ Every variant runs into ``OUT/<label>/``, an ordinary results folder (see
 :mod:`multilayer.run.loop`), and the comparison is then made from those folders
 alone — ``summary.json``, ``series.csv`` and the wall snapshots — so every
 number of ``report.md`` / ``report.json`` can be recomputed from the runs'
-own files.  See ``docs/compare.md``.
+own files.  See ``docs/compare.md``; the command line is
+:mod:`multilayer.commands.compare`.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from multilayer.campaign import report
-from multilayer.campaign.executor import ExecutorError, Job, execute
+from multilayer.campaign.executor import Job, execute
 from multilayer.campaign.measures import compare_runs
-from multilayer.campaign.variants import (
-    Variant,
-    invalid_message,
-    load_variants,
-    make_variants,
-)
-from multilayer.commands.main import FAILED, INVALID, OK
-from multilayer.plugin.problems import CaseError
+from multilayer.campaign.variants import Variant
 from multilayer.plugin.registry import Registry
 from multilayer.results.figures import plot_spacetime
 from multilayer.results.reading import RunData, lumen_eta, read_run, without_nan
@@ -68,37 +61,3 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
     plot_spacetime(fields, out / "eta_spacetime.png")
     (out / "report.md").write_text(report.markdown(data))
     return data
-
-
-def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Sequence[str],
-         registry: Registry, jobs: int = 1, plugins: Sequence[str] = (), scheduler: str | None = None) -> int:
-    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary, --jobs) is invalid."""
-    if jobs < 1:
-        print(f"compare: invalid command line\n--jobs = {jobs}: expected an integer >= 1 (runs at once)",
-              file=sys.stderr)
-        return INVALID
-    try:
-        variants = make_variants(case_files, vary, overrides)
-    except CaseError as exc:
-        print("compare: invalid command line", file=sys.stderr)
-        print(str(exc), file=sys.stderr)
-        return INVALID
-    loaded, invalid = load_variants(variants, registry)
-    if invalid:
-        print(invalid_message("compare", variants, invalid), file=sys.stderr)
-        return INVALID
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    variants = [v for v, _ in loaded]  # with the snapshot cadence they ran with
-    try:
-        runs = run_variants(variants, out, registry, jobs, plugins, scheduler)
-    except ExecutorError as exc:
-        print(f"compare: {exc}", file=sys.stderr)
-        return INVALID
-    data = write_report(out, variants, runs, registry, vary)
-    failed = [c["label"] for c in data["variants"] if c["status"] != "ok"]
-    print(f"report: {out / 'report.md'}")
-    if failed:
-        print(f"compare: {len(failed)} variant(s) failed: {', '.join(failed)}", file=sys.stderr)
-        return FAILED
-    return OK

@@ -16,6 +16,9 @@ more axis (:class:`~multilayer.campaign.study.Setting` ``ratio=<r>`` realised as
 ``OUT/<coupler>/ratio=<r>/<key=value>/...``.  Everything reported is read
 back from those folders.
 
+The command line (its options, messages and exit codes) is
+:mod:`multilayer.commands.stability`.
+
 The measurements are pure functions of numbers and arrays
 (:func:`density_for_ratio`, :func:`mass_ratio`, :func:`initial_energy`,
 :func:`energy_excess`, :func:`energy_growth`, :func:`is_stable`,
@@ -26,7 +29,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -34,21 +36,11 @@ from typing import Any
 import attrs
 import numpy as np
 
-from multilayer.campaign.executor import ExecutorError
-from multilayer.campaign.study import (
-    Planned,
-    grid_options,
-    invalid_runs,
-    plan_grid,
-    run_variants,
-)
-from multilayer.case.casefile import load_case
-from multilayer.case.grid import Setting, vary_axis
+from multilayer.campaign.study import CouplerChoice, Planned
+from multilayer.case.grid import Setting
 from multilayer.case.keys import key_steps
 from multilayer.case.model import Case
-from multilayer.commands.main import INVALID, OK
 from multilayer.plugin.problems import MISSING, CaseError, Problem
-from multilayer.plugin.registry import Registry
 from multilayer.results.reading import RunData, without_nan
 
 #: a run is stable when its energy growth stays at or below this (relative round-off of the ledger)
@@ -575,89 +567,28 @@ def plot(data: Mapping[str, Any], path: Path) -> None:
     save_figure(fig, path)
 
 
-# -- the command -------------------------------------------------------------------
+# -- what the command writes ---------------------------------------------------------------
 
 
-def _invalid(head: str, problems: Sequence[Problem]) -> int:
-    print(head, file=sys.stderr)
-    print(str(CaseError(problems)), file=sys.stderr)
-    return INVALID
-
-
-def main(case_file: Path, out: Path, couplers: str | None, ratios: str | None, varies: Sequence[str], layer: int,
-         jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer stability", scheduler: str | None = None) -> int:
-    """``multilayer stability``: 0 the map is made (failed runs are results), 2 invalid input.
-
-    Parameters
-    ----------
-    case_file : Path
-        The scene.
-    out : Path
-        The map's folder; runs go to ``OUT/<coupler>/ratio=<r>/<key=value>/``.
-    couplers : str or None
-        ``--couplers`` (:func:`multilayer.campaign.study.parse_couplers`); None: the case's own.
-    ratios : str or None
-        ``--ratios``, comma separated values of ρ₁h/(ρ_f R); None: :data:`DEFAULT_RATIOS`.
-    varies : sequence of str
-        Every ``--vary KEY=A,B,...``.
-    layer : int
-        The thin layer whose density realises the ratio.
-    jobs : int
-        Runs at once.
-    overrides : sequence of str
-        ``--set``, applied to every run before the coupler, the density and the varied values.
-    registry : Registry
-        The plugins.
-    plugins : sequence of str
-        ``--plugin`` modules, imported again in each worker.
-    command : str
-        The command line, written at the top of ``stability.md``.
-
-    Returns
-    -------
-    int
-        The exit code.
-    """
-    out = Path(out)
-    try:
-        choices, axes, problems = grid_options(case_file, out, couplers, varies, jobs, overrides, registry)
-        case = load_case(case_file, overrides, registry)
-    except CaseError as exc:
-        return _invalid(f"{case_file}: invalid case", exc.problems)
-    try:
-        values = parse_ratios(DEFAULT_RATIOS if ratios is None else ratios)
-    except CaseError as exc:
-        problems += exc.problems
-    problems += layer_problems(case, layer) + vary_problems(axes, layer)
-    if problems:
-        return _invalid("stability: invalid command line", problems)
-    realised = Ratios.of(case, layer, values)
-    planned = plan_grid(case_file, choices, [realised.axis(), *(vary_axis(k, v) for k, v in axes)], overrides)
-    variants = [p.variant for p in planned]
-    if invalid_runs("stability", variants, registry):
-        return INVALID
-    out.mkdir(parents=True, exist_ok=True)
-    folders = {p.label: out / p.folder for p in planned}
-    try:
-        runs = run_variants(variants, folders, jobs, registry, plugins, scheduler)
-    except ExecutorError as exc:
-        print(f"stability: {exc}", file=sys.stderr)
-        return INVALID
-    data = {
+def map_data(planned: Sequence[Planned], runs: Mapping[str, RunData], ratios: Ratios,
+             couplers: Sequence[CouplerChoice], axes: Sequence[tuple[str, Sequence[str]]], *, command: str,
+             case_file: Path, title: str, overrides: Sequence[str]) -> dict[str, Any]:
+    """The whole of ``stability.json``: what was asked, how the ratios are realised, one row per run."""
+    return {
         "command": command,
         "case_file": str(case_file),
-        "title": case.title,
+        "title": title,
         "overrides": list(overrides),
-        **realised.describe(),
-        "couplers": [attrs.asdict(c) for c in choices],
+        **ratios.describe(),
+        "couplers": [attrs.asdict(c) for c in couplers],
         "vary": [{"key": k, "values": v} for k, v in axes],
         "tolerance": GROWTH_TOLERANCE,
-        "runs": [measure_run(p, runs[p.label], layer) for p in planned],
+        "runs": [measure_run(p, runs[p.label], ratios.layer) for p in planned],
     }
+
+
+def write_report(out: Path, data: Mapping[str, Any]) -> None:
+    """``stability.json``, ``stability.md`` and ``stability.png`` of ``data`` in the folder ``out``."""
     (out / "stability.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
     (out / "stability.md").write_text(markdown(data))
     plot(data, out / "stability.png")
-    stable = sum(r["stable"] for r in data["runs"])
-    print(f"map: {out / 'stability.md'} ({stable} of {len(data['runs'])} runs stable)")
-    return OK

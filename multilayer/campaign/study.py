@@ -11,7 +11,11 @@ Plan → execute → collect:
 * :func:`collect` measures everything from those folders alone
   (:func:`multilayer.results.reading.read_run`): errors against a reference,
   observed orders, the Pareto front of wall time against error, the cost of
-  reaching a target error.
+  reaching a target error; :func:`study_data` is the whole ``study.json``,
+  which :func:`write_report` writes with ``study.md`` and the figures.
+
+The command line (its options, messages and exit codes) is
+:mod:`multilayer.commands.study`.
 
 The measurements are pure functions of numbers and arrays
 (:func:`relative_linf`, :func:`probe_errors`, :func:`observed_orders`,
@@ -24,18 +28,16 @@ from __future__ import annotations
 import json
 import math
 import re
-import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import attrs
 import numpy as np
 
-from multilayer.campaign.executor import ExecutorError, Job, execute, print_err
+from multilayer.campaign.executor import Job, execute, print_err
 from multilayer.campaign.variants import (
     Variant,
-    invalid_message,
     load_variants,
     sanitize,
     unique,
@@ -44,7 +46,6 @@ from multilayer.case import grid
 from multilayer.case.casefile import load_case
 from multilayer.case.grid import Setting, combinations, vary_axis
 from multilayer.case.keys import parse_value, split_values
-from multilayer.commands.main import FAILED, INVALID, OK
 from multilayer.plugin.problems import CaseError, Problem, did_you_mean
 from multilayer.plugin.registry import Registry
 from multilayer.results.folder import holds_finished_run
@@ -238,11 +239,12 @@ def finished_run(variant: Variant, folder: Path, registry: Registry) -> bool:
 
 
 def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
-                 plugins: Sequence[str] = (), scheduler: str | None = None, reuse: bool = False) -> dict[str, RunData]:
+                 plugins: Sequence[str] = (), scheduler: str | None = None, reuse: bool = False,
+                 log: Callable[[str], None] = print_err) -> dict[str, RunData]:
     """Run every (validated) variant into ``folders[label]`` in this order, then read each folder back.
 
     :func:`multilayer.campaign.executor.execute` (here with one worker, else on
-    Dask) with one line per finished run on stderr; the result is
+    Dask) with one line per finished run to ``log`` (stderr); the result is
     :func:`multilayer.results.reading.read_run` of each folder, by label, in the
     order of ``variants``, with the status and reason the run returned.
     With ``reuse``, a folder that already holds an ok run of the same case
@@ -255,9 +257,9 @@ def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], worke
     """
     kept = [v for v in variants if reuse and finished_run(v, folders[v.label], registry)]
     for v in kept:
-        print(f"[reused] {v.label}: ok, already in {folders[v.label]}", file=sys.stderr)
+        log(f"[reused] {v.label}: ok, already in {folders[v.label]}")
     work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants if v not in kept]
-    status = execute(work, workers, registry, plugins, log=print_err, scheduler=scheduler)
+    status = execute(work, workers, registry, plugins, log=log, scheduler=scheduler)
     status.update({v.label: ("ok", "") for v in kept})
     return {v.label: read_run(v.label, folders[v.label], *status[v.label]) for v in variants}
 
@@ -938,7 +940,7 @@ def plot(data: Mapping[str, Any], out: Path) -> None:
     save_figure(fig, out / "orders.png")
 
 
-# -- the command -----------------------------------------------------------------
+# -- the options, and what the command writes --------------------------------------
 
 
 def _own_coupler(case_file: Path, overrides: Sequence[str], registry: Registry) -> CouplerChoice:
@@ -984,81 +986,54 @@ def grid_options(case_file: Path, out: Path, couplers: str | None, varies: Seque
     return choices, axes, problems
 
 
-def invalid_runs(command: str, variants: Sequence[Variant], registry: Registry) -> bool:
-    """Validate every run before any starts; print what is wrong with each (stderr) and say whether any is."""
-    _, invalid = load_variants(variants, registry, snapshots=False)
-    if invalid:
-        print(invalid_message(command, variants, invalid, "runs"), file=sys.stderr)
-    return bool(invalid)
+def invalid_runs(variants: Sequence[Variant], registry: Registry) -> dict[str, list[Problem]]:
+    """Validate every run before any starts: the problems by label (empty when every run is valid).
 
-
-def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
-         jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer study", reference_sets: Sequence[str] = (),
-         probes: Sequence[str] | None = None, reuse: bool = False, scheduler: str | None = None) -> int:
-    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
-
-    ``reference_sets`` are overrides of the reference alone; with them and no
-    ``reference`` file, the reference is ``case_file`` with those overrides.
-    ``probes`` (``--probes``) are the η probes the errors are measured at (all
-    by default); ``reuse`` (``--reuse``) keeps finished runs of the same case.
+    :func:`multilayer.campaign.variants.invalid_message` puts them in words.
     """
-    if reference is None and reference_sets:
-        reference = case_file
-    out = Path(out)
-    try:
-        choices, axes, problems = grid_options(case_file, out, couplers, varies, jobs, overrides, registry)
-    except CaseError as exc:
-        print(f"{case_file}: invalid case", file=sys.stderr)
-        print(str(exc), file=sys.stderr)
-        return INVALID
-    if problems:
-        print("study: invalid command line", file=sys.stderr)
-        print(str(CaseError(problems)), file=sys.stderr)
-        return INVALID
-    planned = plan(case_file, choices, axes, overrides)
-    variants = [p.variant for p in planned]
-    if reference is not None:
-        variants.append(Variant(REFERENCE, Path(reference), (*overrides, *reference_sets)))
-    if invalid_runs("study", variants, registry):
-        return INVALID
-    out.mkdir(parents=True, exist_ok=True)
-    folders = {p.label: out / p.folder for p in planned} | ({REFERENCE: out / REFERENCE} if reference else {})
-    # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
-    order = variants[-1:] + variants[:-1] if reference is not None else variants
-    try:
-        runs = run_variants(order, folders, jobs, registry, plugins, scheduler, reuse)
-    except ExecutorError as exc:
-        print(f"study: {exc}", file=sys.stderr)
-        return INVALID
-    runs = {label: runs[label] for label in folders}
-    if probes is not None:
-        known = {p["name"] for r in runs.values() for p in r.probes if p["quantity"] == "eta"}
-        unknown = [name for name in probes if name not in known]
-        if unknown:
-            print(str(CaseError([Problem("--probes", name, "not an η probe of these runs",
-                                         did_you_mean(name, sorted(known)) or f"η probes: {', '.join(sorted(known))}")
-                                 for name in unknown])), file=sys.stderr)
-            return INVALID
+    return load_variants(variants, registry, snapshots=False)[1]
+
+
+def unknown_probes(names: Sequence[str], runs: Mapping[str, RunData]) -> list[Problem]:
+    """A problem at ``--probes`` for each name that is not an η probe of any of the runs.
+
+    >>> case = {"output": {"probes": [{"name": "eta_mid", "quantity": "eta"}]}}
+    >>> run = RunData("a", Path("a"), {"case": case}, {"eta_mid": []})
+    >>> [str(p) for p in unknown_probes(["eta_mid", "eta_mdi"], {"a": run})]
+    ["--probes = 'eta_mdi': not an η probe of these runs; did you mean 'eta_mid'?"]
+    """
+    known = {p["name"] for r in runs.values() for p in r.probes if p["quantity"] == "eta"}
+    return [Problem("--probes", name, "not an η probe of these runs",
+                    did_you_mean(name, sorted(known)) or f"η probes: {', '.join(sorted(known))}")
+            for name in names if name not in known]
+
+
+def study_data(planned: Sequence[Planned], runs: Mapping[str, RunData], couplers: Sequence[CouplerChoice],
+               axes: Sequence[tuple[str, Sequence[str]]], probes: Sequence[str] | None, *, command: str,
+               case_file: Path, overrides: Sequence[str]) -> dict[str, Any]:
+    """The whole of ``study.json``: what was asked (the command line, the case, the grid), then :func:`collect`.
+
+    ``runs`` holds every planned run by label, and the ``--reference`` run
+    under :data:`REFERENCE` when there is one.
+    """
     data = {
         "command": command,
         "case_file": str(case_file),
         "title": next((r.case.get("title", "") for r in runs.values() if r.case), ""),
         "overrides": list(overrides),
-        "couplers": [attrs.asdict(c) for c in choices],
+        "couplers": [attrs.asdict(c) for c in couplers],
         "vary": [{"key": k, "values": v} for k, v in axes],
         "targets": list(TARGETS),
         "probes": list(probes) if probes is not None else "every η probe",
-        **collect(planned, runs, choices, runs.get(REFERENCE), probes),
+        **collect(planned, runs, couplers, runs.get(REFERENCE), probes),
     }
     for row in data["runs"]:
         del row["coupler_index"]
+    return data
+
+
+def write_report(out: Path, data: Mapping[str, Any]) -> None:
+    """``study.json``, ``study.md``, ``pareto.png`` and ``orders.png`` of ``data`` in the folder ``out``."""
     (out / "study.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
     (out / "study.md").write_text(markdown(data))
     plot(data, out)
-    failed = [label for label, run in runs.items() if run.summary.get("status") != "ok"]
-    print(f"report: {out / 'study.md'}")
-    if failed:
-        print(f"study: {len(failed)} run(s) failed: {', '.join(failed)}", file=sys.stderr)
-        return FAILED
-    return OK
