@@ -8,12 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer.campaign import measures
-from multilayer.results import reading
-from multilayer.campaign import variants
+from multilayer.campaign import measures, variants
 from multilayer.campaign.report import markdown
 from multilayer.commands.main import main
 from multilayer.plugin.registry import Registry
+from multilayer.results import reading
 
 CASES = Path(__file__).parents[1] / "cases"
 MEMBRANE = CASES / "membrane-mode.toml"

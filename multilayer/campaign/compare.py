@@ -22,7 +22,6 @@ from multilayer.campaign.executor import Job, execute
 from multilayer.campaign.measures import compare_runs
 from multilayer.campaign.variants import Variant
 from multilayer.plugin.registry import Registry
-from multilayer.results.figures import plot_spacetime
 from multilayer.results.reading import RunData, lumen_eta, read_run, without_nan
 
 
@@ -43,6 +42,9 @@ def run_variants(variants: Sequence[Variant], out: Path, registry: Registry, job
 def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData], registry: Registry,
                  vary: str | None = None) -> dict[str, Any]:
     """``report.json``, ``report.md``, ``probes.png`` and ``eta_spacetime.png`` in ``out``."""
+    # matplotlib is heavy (results.figures loads it): imported only when the figures are drawn
+    from multilayer.results.figures import plot_spacetime
+
     columns = compare_runs(runs, registry)
     for column, variant in zip(columns, variants):
         column["case_file"] = str(variant.case_file)

@@ -2,8 +2,9 @@
 
 Plan → execute → collect:
 
-* :func:`plan` expands the case file's ``[sweep]`` table and every
-  ``--vary`` (:mod:`multilayer.case.grid`) into resolved, validated cases
+* :func:`plan` expands the case file's ``[sweep]`` table
+  (:func:`read_table`) and every ``--vary`` (:func:`sweep_axes`,
+  :mod:`multilayer.case.grid`) into resolved, validated cases
   (:class:`SweepRun`), each with its digest and folder ``runs/<digest[:12]>/``;
 * :func:`multilayer.campaign.executor.execute` runs those not finished yet
   (:func:`pending`: a folder whose ``summary.json`` says ``ok`` for the same
@@ -32,6 +33,7 @@ import attrs
 import numpy as np
 
 from multilayer.campaign.measures import measure
+from multilayer.campaign.report import cell
 from multilayer.campaign.variants import sanitize
 from multilayer.case.casefile import load_case
 from multilayer.case.grid import (
@@ -201,8 +203,6 @@ def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> None:
 
 def markdown(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], command: str, figures: Sequence[str]) -> str:
     """``sweep.md``: the command, one table row per run, the figures."""
-    from multilayer.campaign.report import cell
-
     columns = [c for c in _columns(rows) if c not in ("reason", "folder")]
     ok = sum(r["status"] == "ok" for r in rows)
     lines = ["# Sweep", "", "    " + command, "",
@@ -231,6 +231,7 @@ def plot(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], out: Path) -> l
     A numeric key is a numeric axis; any other (an inline table) one tick
     per value.  Runs equal in the other keys are joined by a line.
     """
+    # matplotlib is heavy (and results.figures loads it): imported only when the figures are drawn
     from matplotlib.figure import Figure
 
     from multilayer.results.figures import save_figure

@@ -1,7 +1,8 @@
 """``multilayer stability``: couplers × wall-to-fluid mass ratio ρ₁h/(ρ_f R) (× time steps), in one map.
 
-The grid is :mod:`multilayer.campaign.study`'s, the ratios, measurements and
-report :mod:`multilayer.campaign.stability`'s; see ``docs/stability.md``.
+The grid is :mod:`multilayer.campaign.planning`'s, the ratios and measurements
+:mod:`multilayer.campaign.stability`'s, the report
+:mod:`multilayer.campaign.stability_report`'s; see ``docs/stability.md``.
 """
 
 from __future__ import annotations
@@ -12,7 +13,14 @@ from pathlib import Path
 
 import attrs
 
+from multilayer.campaign import stability_report
 from multilayer.campaign.executor import ExecutorError
+from multilayer.campaign.planning import (
+    grid_options,
+    invalid_runs,
+    plan_grid,
+    run_variants,
+)
 from multilayer.campaign.stability import (
     DEFAULT_RATIOS,
     Ratios,
@@ -20,13 +28,6 @@ from multilayer.campaign.stability import (
     map_data,
     parse_ratios,
     vary_problems,
-    write_report,
-)
-from multilayer.campaign.study import (
-    grid_options,
-    invalid_runs,
-    plan_grid,
-    run_variants,
 )
 from multilayer.campaign.variants import invalid_message
 from multilayer.case.casefile import load_case
@@ -49,7 +50,7 @@ class StabilityOptions:
 
     case: Path
     out: Path  #: the map's folder; runs go to ``OUT/<coupler>/ratio=<r>/<key=value>/``
-    couplers: str | None  #: ``--couplers`` (:func:`multilayer.campaign.study.parse_couplers`); None: the case's own
+    couplers: str | None  #: ``--couplers`` (:func:`multilayer.campaign.planning.parse_couplers`); None: the case's own
     ratios: str | None  #: ``--ratios``, values of ρ₁h/(ρ_f R); None: :data:`~multilayer.campaign.stability.DEFAULT_RATIOS`
     varies: tuple[str, ...]  #: every ``--vary KEY=A,B,...``
     layer: int  #: the thin layer whose density realises the ratio
@@ -117,7 +118,7 @@ def stability(options: StabilityOptions) -> int:
         return INVALID
     data = map_data(planned, runs, realised, choices, axes, command=o.command_line, case_file=o.case,
                     title=case.title, overrides=o.overrides)
-    write_report(o.out, data)
+    stability_report.write(o.out, data)
     stable = sum(r["stable"] for r in data["runs"])
     print(f"map: {o.out / 'stability.md'} ({stable} of {len(data['runs'])} runs stable)")
     return OK

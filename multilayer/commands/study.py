@@ -1,7 +1,8 @@
 """``multilayer study``: speed against error of couplers × Δt (× mesh), against a reference.
 
-The grid, the measurements and the report are :mod:`multilayer.campaign.study`'s;
-see ``docs/study.md``.
+The grid is :mod:`multilayer.campaign.planning`'s, the measurements
+:mod:`multilayer.campaign.study`'s, the report
+:mod:`multilayer.campaign.study_report`'s; see ``docs/study.md``.
 """
 
 from __future__ import annotations
@@ -12,17 +13,16 @@ from pathlib import Path
 
 import attrs
 
+from multilayer.campaign import study_report
 from multilayer.campaign.executor import ExecutorError
-from multilayer.campaign.study import (
+from multilayer.campaign.planning import (
     REFERENCE,
     grid_options,
     invalid_runs,
     plan,
     run_variants,
-    study_data,
-    unknown_probes,
-    write_report,
 )
+from multilayer.campaign.study import study_data, unknown_probes
 from multilayer.campaign.variants import Variant, invalid_message
 from multilayer.commands.common import (
     FAILED,
@@ -125,7 +125,7 @@ def study(options: StudyOptions) -> int:
             return INVALID
     data = study_data(planned, runs, choices, axes, o.probes, command=o.command_line, case_file=o.case,
                       overrides=o.overrides)
-    write_report(o.out, data)
+    study_report.write(o.out, data)
     failed = [label for label, run in runs.items() if run.summary.get("status") != "ok"]
     print(f"report: {o.out / 'study.md'}")
     if failed:
