@@ -57,7 +57,7 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
         "variants": columns,
     }
     (out / "report.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
-    report.plot_probes(runs, out / "probes.png")
+    report.plot_compared_probes(runs, out / "probes.png")
     radius = (first.get("geometry") or {}).get("radius")
     fields = {run.label: lumen_eta(run.folder, radius) for run in runs} if radius else {}
     plot_spacetime(fields, out / "eta_spacetime.png")

@@ -1,7 +1,7 @@
 """The grid of a study or a stability map: couplers × axes of settings, validated, then run.
 
 * :func:`parse_couplers` reads ``--couplers`` into :class:`CouplerChoice` s and
-  :func:`parse_varies` every ``--vary`` (the coupler is left to
+  :func:`parse_study_varies` every ``--vary`` (the coupler is left to
   ``--couplers``); :func:`grid_options` checks them with ``--jobs`` and
   ``--out``;
 * :func:`plan_grid` (and :func:`plan`, its ``--vary``-only form) turns them
@@ -9,7 +9,7 @@
   (case file + overrides) with its results folder
   ``OUT/<coupler>/<key=value>/...``;
 * :func:`invalid_runs` validates every run before any starts, and
-  :func:`run_variants` runs them with :func:`multilayer.campaign.executor.execute`
+  :func:`run_planned` runs them with :func:`multilayer.campaign.executor.execute`
   and reads each folder back.
 
 :mod:`multilayer.campaign.study` and :mod:`multilayer.campaign.stability` both
@@ -129,12 +129,12 @@ def parse_couplers(text: str, names: Sequence[str]) -> list[CouplerChoice]:
     return [attrs.evolve(c, label=label) for c, label in zip(choices, unique([c.label for c in choices]))]
 
 
-def parse_varies(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
+def parse_study_varies(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
     """Every ``--vary KEY=A,B,...`` of a study or a stability map (:func:`multilayer.case.grid.parse_varies`).
 
     The coupler cannot be varied: ``--couplers`` chooses it.
 
-    >>> parse_varies(["time.dt=1e-4,5e-5", "mesh.nz=12,24"])
+    >>> parse_study_varies(["time.dt=1e-4,5e-5", "mesh.nz=12,24"])
     [('time.dt', ['1e-4', '5e-5']), ('mesh.nz', ['12', '24'])]
     """
     return grid.parse_varies(texts, {"coupler": "the coupler is chosen with --couplers"})
@@ -234,7 +234,7 @@ def grid_options(case_file: Path, out: Path, couplers: str | None, varies: Seque
     except CaseError as exc:
         problems += exc.problems
     try:
-        axes = parse_varies(varies)
+        axes = parse_study_varies(varies)
     except CaseError as exc:
         problems += exc.problems
     if out.exists() and not out.is_dir():
@@ -257,7 +257,7 @@ def finished_run(variant: Variant, folder: Path, registry: Registry) -> bool:
     return holds_finished_run(folder, load_case(variant.case_file, variant.overrides, registry).digest)
 
 
-def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
+def run_planned(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
                 plugins: Sequence[str] = (), scheduler: str | None = None, reuse: bool = False,
                 log: Callable[[str], None] = print_err) -> dict[str, RunData]:
     """Run every (validated) variant into ``folders[label]`` in this order, then read each folder back.

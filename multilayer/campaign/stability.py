@@ -13,7 +13,7 @@ It is a sibling of :mod:`multilayer.campaign.study` and shares its grid
 ``layers[L].density = r·ρ_f·R/h``, :meth:`Ratios.axis`), planned by
 :func:`~multilayer.campaign.planning.plan_grid`, validated and run by
 :func:`~multilayer.campaign.planning.invalid_runs` and
-:func:`~multilayer.campaign.planning.run_variants` into ordinary results folders
+:func:`~multilayer.campaign.planning.run_planned` into ordinary results folders
 ``OUT/<coupler>/ratio=<r>/<key=value>/...``.  Everything reported is read
 back from those folders: :func:`measure_run` makes a run's row,
 :func:`map_data` the whole ``stability.json``, and

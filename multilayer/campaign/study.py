@@ -6,7 +6,7 @@ Plan → execute → collect:
   ``--vary`` into a grid of runs, each a
   :class:`~multilayer.campaign.variants.Variant` (case file + overrides) with its
   results folder ``OUT/<coupler>/<key=value>/...``;
-* :func:`multilayer.campaign.planning.run_variants` runs them
+* :func:`multilayer.campaign.planning.run_planned` runs them
   (:func:`multilayer.campaign.executor.execute`: here with ``--jobs 1``, else on
   Dask), each into an ordinary results folder
   (:func:`multilayer.campaign.variants.run_variant`);

@@ -3,7 +3,7 @@
 Plan → execute → collect:
 
 * :func:`plan` expands the case file's ``[sweep]`` table
-  (:func:`read_table`) and every ``--vary`` (:func:`sweep_axes`,
+  (:func:`read_sweep_table`) and every ``--vary`` (:func:`sweep_axes`,
   :mod:`multilayer.case.grid`) into resolved, validated cases
   (:class:`SweepRun`), each with its digest and folder ``runs/<digest[:12]>/``;
 * :func:`multilayer.campaign.executor.execute` runs those not finished yet
@@ -72,7 +72,7 @@ class SweepRun:
         return ", ".join(f"{k}={v}" for k, v in self.values) or self.digest[:DIGEST_CHARS]
 
 
-def read_table(case_file: Path) -> SweepTable | None:
+def read_sweep_table(case_file: Path) -> SweepTable | None:
     """The ``[sweep]`` table of ``case_file`` (None without one); CaseError with its key paths when invalid."""
     try:
         data = tomllib.loads(Path(case_file).read_text(encoding="utf-8"))

@@ -19,7 +19,7 @@ from multilayer.campaign.planning import (
     grid_options,
     invalid_runs,
     plan_grid,
-    run_variants,
+    run_planned,
 )
 from multilayer.campaign.stability import (
     DEFAULT_RATIOS,
@@ -112,7 +112,7 @@ def stability(options: StabilityOptions) -> int:
     o.out.mkdir(parents=True, exist_ok=True)
     folders = {p.label: o.out / p.folder for p in planned}
     try:
-        runs = run_variants(variants, folders, o.jobs, o.registry, o.plugins, o.scheduler)
+        runs = run_planned(variants, folders, o.jobs, o.registry, o.plugins, o.scheduler)
     except ExecutorError as exc:
         print(f"stability: {exc}", file=sys.stderr)
         return INVALID

@@ -20,7 +20,7 @@ from multilayer.campaign.planning import (
     grid_options,
     invalid_runs,
     plan,
-    run_variants,
+    run_planned,
 )
 from multilayer.campaign.study import study_data, unknown_probes
 from multilayer.campaign.variants import Variant, invalid_message
@@ -113,7 +113,7 @@ def study(options: StudyOptions) -> int:
     # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
     order = variants[-1:] + variants[:-1] if reference is not None else variants
     try:
-        runs = run_variants(order, folders, o.jobs, o.registry, o.plugins, o.scheduler, o.reuse)
+        runs = run_planned(order, folders, o.jobs, o.registry, o.plugins, o.scheduler, o.reuse)
     except ExecutorError as exc:
         print(f"study: {exc}", file=sys.stderr)
         return INVALID

@@ -19,7 +19,7 @@ from multilayer.campaign.sweep import (
     key_problems,
     pending,
     plan,
-    read_table,
+    read_sweep_table,
     sweep_axes,
     write_plan,
     write_report,
@@ -88,7 +88,7 @@ def sweep(options: SweepOptions) -> int:
     if problems:
         return invalid("sweep: invalid command line", problems)
     try:
-        axes = sweep_axes(read_table(o.case), o.varies)
+        axes = sweep_axes(read_sweep_table(o.case), o.varies)
     except CaseError as exc:
         return invalid(f"{o.case}: invalid sweep", exc.problems)
     problems = key_problems(o.case, axes, o.overrides, o.registry)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import attrs
 
-from multilayer.campaign.sweep import read_table
+from multilayer.campaign.sweep import read_sweep_table
 from multilayer.case.casefile import load_case
 from multilayer.case.model import Case
 from multilayer.commands.common import OK, case_options, plugin_options
@@ -65,7 +65,7 @@ def describe(path: Path, case: Case) -> str:
 
 def describe_sweep(path: Path) -> None:
     """For a case with a (valid) ``[sweep]`` table: how many runs it declares and that ``sweep`` runs them."""
-    table = read_table(path)
+    table = read_sweep_table(path)
     if table is not None:
         print(f"  sweep    {table.size} runs over {', '.join(table.keys)}: 'multilayer sweep' runs them; "
               f"'run' runs the case as written, without [sweep]")
