@@ -10,7 +10,7 @@ study's own wall time of each run, or, with ``--costs`` (the JSON lines of
 all couplers measured side by side in one run), steps × median step:
 costs a shared machine cannot skew between couplers.  A target no run
 reached is extrapolated from the coupler's finest run with its observed
-order (``multilayer.campaign.study.cost_to_target``) and marked so.
+order (``multilayer.campaign.accuracy.cost_to_target``) and marked so.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import json
 import sys
 from pathlib import Path
 
-from multilayer.campaign.study import cost_to_target, observed_orders
+from multilayer.campaign.accuracy import cost_to_target, observed_orders
 
 TARGETS = (0.05, 0.01)
 

@@ -14,7 +14,8 @@ from runs import CASES, run_cli
 
 import multilayer.results.folder
 from multilayer.case.casefile import load_case
-from multilayer.commands.main import INTERRUPTED, main
+from multilayer.commands.common import INTERRUPTED
+from multilayer.commands.main import main
 from multilayer.results.folder import ResultsFolder, _append_to_collection, _pvd
 from multilayer.run.loop import run_case
 

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer.campaign import stability
-from multilayer.campaign.study import Planned, Variant
+from multilayer.campaign import stability, stability_report
+from multilayer.campaign.planning import Planned
+from multilayer.campaign.variants import Variant
 from multilayer.case.casefile import load_case
 from multilayer.commands.main import main
 from multilayer.coupling.build import prepare
@@ -154,17 +155,17 @@ def test_measure_and_report_a_stable_a_failed_and_an_unstable_run(tmp_path):
     assert grew["verdict"] == "energy grew" and grew["energy_growth"] == pytest.approx(0.5 / 4.0, rel=1e-12)
     assert grew["energy_growth_time_s"] == pytest.approx(3e-4) and not grew["iterations"]["reported"]
 
-    assert stability.status_cell(stable) == "stable, 4.0 it/step (max 5), 2.5 s"
-    assert stability.status_cell(failed) == "failed after t = 0.0002 s"
-    assert stability.status_cell(grew) == "energy grew (1.25e-01), 1.0 it/step, 2.5 s"
+    assert stability_report.status_cell(stable) == "stable, 4.0 it/step (max 5), 2.5 s"
+    assert stability_report.status_cell(failed) == "failed after t = 0.0002 s"
+    assert stability_report.status_cell(grew) == "energy grew (1.25e-01), 1.0 it/step, 2.5 s"
     data = {"command": "multilayer stability x", "title": "synthetic", "tolerance": 1e-9,
             "layer": {"index": 0, "path": "layers[0]", "model": "koiter-shell", "thickness": 0.1},
             "fluid_density": 1.0, "radius": 0.5, "ratios": [{"text": "0.1", "ratio": 0.1, "density": 0.5}],
             "couplers": [{"label": "dn"}], "runs": rows}
-    text = stability.markdown(data)
+    text = stability_report.markdown(data)
     assert text.count("## Δt = 0.0001 s, case = ") == 3 and "| `dn` | failed after t = 0.0002 s |" in text
     assert "energy grew beyond the work put in at t = 0.0003 s" in text and "No `iterations` column" in text
-    stability.plot(data, tmp_path / "stability.png")
+    stability_report.plot(data, tmp_path / "stability.png")
     assert (tmp_path / "stability.png").stat().st_size > 0
 
 

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer.campaign import study
+from multilayer.campaign import accuracy, planning, study
+from multilayer.campaign.variants import Variant
 from multilayer.commands.main import main
 from multilayer.results.reading import read_run
 
@@ -24,16 +25,16 @@ MEMBRANE = CASES / "membrane-mode.toml"
 def test_exact_error_sequences_give_their_order(p):
     dt = [1e-3, 5e-4, 2e-4, 1e-4, 2.5e-5]  # ratios 2, 2.5, 2, 4
     errors = [0.7 * h**p for h in dt]
-    orders = study.observed_orders(dt, errors)
+    orders = accuracy.observed_orders(dt, errors)
     assert len(orders) == 4
     for order in orders:
         assert order == pytest.approx(p, abs=1e-12)
 
 
 def test_orders_skip_missing_or_zero_errors_and_need_decreasing_steps():
-    assert study.observed_orders([4.0, 2.0, 1.0, 0.5], [4.0, None, 1.0, 0.0]) == [None, None, None]
+    assert accuracy.observed_orders([4.0, 2.0, 1.0, 0.5], [4.0, None, 1.0, 0.0]) == [None, None, None]
     with pytest.raises(ValueError, match="decrease"):
-        study.observed_orders([1.0, 2.0], [1.0, 2.0])
+        accuracy.observed_orders([1.0, 2.0], [1.0, 2.0])
 
 
 def test_pareto_front_of_a_hand_made_set():
@@ -41,9 +42,9 @@ def test_pareto_front_of_a_hand_made_set():
     cost = [1.0, 2.0, 2.0, 3.0, 4.0, 5.0, 5.0]
     error = [0.5, 0.2, 0.3, 0.2, 0.05, 0.05, 0.01]
     # c: b is as cheap and more accurate; d: b cheaper, same error; f: e cheaper, same error
-    assert study.pareto_front(cost, error) == [0, 1, 4, 6]
-    assert study.pareto_front([1.0, 1.0], [0.1, 0.1]) == [0, 1]  # equal points do not beat each other
-    assert study.pareto_front([], []) == []
+    assert accuracy.pareto_front(cost, error) == [0, 1, 4, 6]
+    assert accuracy.pareto_front([1.0, 1.0], [0.1, 0.1]) == [0, 1]  # equal points do not beat each other
+    assert accuracy.pareto_front([], []) == []
 
 
 @pytest.mark.parametrize("p", [1.0, 2.0, 1.5])
@@ -51,24 +52,24 @@ def test_pareto_front_of_a_hand_made_set():
 def test_richardson_recovers_order_and_error_of_a_manufactured_sequence(p, dt):
     exact, c = 0.3, 40.0
     x = [exact + c * h**p for h in dt]  # X(Δt) = X + C Δt^p
-    order = study.richardson_order(dt, abs(x[0] - x[1]), abs(x[1] - x[2]))
+    order = accuracy.richardson_order(dt, abs(x[0] - x[1]), abs(x[1] - x[2]))
     assert order == pytest.approx(p, abs=1e-10)
-    estimate = study.richardson(abs(x[1] - x[2]), dt[1] / dt[2], order)
+    estimate = accuracy.richardson(abs(x[1] - x[2]), dt[1] / dt[2], order)
     assert estimate == pytest.approx(abs(x[2] - exact), rel=1e-9)
-    assert study.richardson_order(dt, 0.0, 1.0) is None
+    assert accuracy.richardson_order(dt, 0.0, 1.0) is None
 
 
 def test_cost_to_target_measured_estimated_not_reached():
     wall, error = [1.0, 3.0, 2.0, 8.0], [0.3, 0.04, 0.045, 0.02]
     # two runs meet 5 %: the cheaper one, not the finer
-    assert study.cost_to_target(wall, error, 0.05) == {"how": "measured", "wall_time_s": 2.0, "run": 2, "order": None}
+    assert accuracy.cost_to_target(wall, error, 0.05) == {"how": "measured", "wall_time_s": 2.0, "run": 2, "order": None}
     # none meets 1 %: from the finest run, t ∝ 1/Δt and e ∝ Δt^p → t = 8·(0.02/0.01)^(1/p)
-    estimated = study.cost_to_target(wall, error, 0.01, finest=3, order=1.0)
+    estimated = accuracy.cost_to_target(wall, error, 0.01, finest=3, order=1.0)
     assert estimated["how"] == "estimated" and estimated["wall_time_s"] == pytest.approx(16.0, rel=1e-15)
-    assert study.cost_to_target(wall, error, 0.01, finest=3, order=2.0)["wall_time_s"] == pytest.approx(
+    assert accuracy.cost_to_target(wall, error, 0.01, finest=3, order=2.0)["wall_time_s"] == pytest.approx(
         8.0 * math.sqrt(2.0), rel=1e-15)
     for order in (None, 0.0, -1.0):
-        assert study.cost_to_target(wall, error, 0.01, finest=3, order=order)["how"] == "not reached"
+        assert accuracy.cost_to_target(wall, error, 0.01, finest=3, order=order)["how"] == "not reached"
 
 
 def test_probe_errors_interpolate_the_reference_and_skip_times_past_its_end():
@@ -76,15 +77,15 @@ def test_probe_errors_interpolate_the_reference_and_skip_times_past_its_end():
     y_ref = np.sin(2 * np.pi * t_ref)  # max 1 at t = 0.25, a row of both grids
     t = np.concatenate([np.linspace(0.0, 1.0, 41), [1.1, 1.2]])  # two rows past the reference's end
     y = np.concatenate([1.1 * np.sin(2 * np.pi * t[:-2]), [50.0, 60.0]])
-    e = study.probe_errors(t, y, t_ref, y_ref)
+    e = accuracy.probe_errors(t, y, t_ref, y_ref)
     # |1.1 sin − sin| is largest at the peak: 0.1 of max |sin| = 1
     assert e["relative_linf"] == pytest.approx(0.1, rel=1e-12)
     assert e["peak_error"] == pytest.approx(0.1, rel=1e-12)
     assert e["peak_time"] == e["peak_time_ref"] == 0.25 and e["arrival_diff_s"] == 0.0
     # shifted by one coarse row: the peak arrives 0.025 s late
-    late = study.probe_errors(t[:-2] + 0.025, np.sin(2 * np.pi * t[:-2]), t_ref, y_ref)
+    late = accuracy.probe_errors(t[:-2] + 0.025, np.sin(2 * np.pi * t[:-2]), t_ref, y_ref)
     assert late["arrival_diff_s"] == pytest.approx(0.025, abs=1e-15)
-    assert study.relative_linf(t + 5.0, y, t_ref, y_ref) is None  # no common time
+    assert accuracy.relative_linf(t + 5.0, y, t_ref, y_ref) is None  # no common time
 
 
 # -- collect on synthetic results folders -------------------------------------------
@@ -120,10 +121,10 @@ def write_run(folder, model, dt, amplitude, wall, order=None, viscosity=0.035):
 
 
 def test_collect_picks_the_higher_order_reference_and_measures_against_it(tmp_path):
-    ks = study.CouplerChoice("kinematic-splitting", "kinematic-splitting", "coupler=kinematic-splitting")
-    mono = study.CouplerChoice("mono[scheme=cn]", "mono", 'coupler={model="mono",scheme="cn"}')
+    ks = planning.CouplerChoice("kinematic-splitting", "kinematic-splitting", "coupler=kinematic-splitting")
+    mono = planning.CouplerChoice("mono[scheme=cn]", "mono", 'coupler={model="mono",scheme="cn"}')
     dts = ["4e-4", "2e-4", "1e-4"]
-    planned = study.plan(Path("c.toml"), [ks, mono], [("time.dt", dts)])
+    planned = planning.plan(Path("c.toml"), [ks, mono], [("time.dt", dts)])
     amplitude = {"kinematic-splitting": lambda h: 1.0 + 300.0 * h, "mono": lambda h: 1.0 + 1e5 * h**2}
     walls = {("kinematic-splitting", "4e-4"): 1.0, ("kinematic-splitting", "2e-4"): 2.0,
              ("kinematic-splitting", "1e-4"): 4.0, ("mono", "4e-4"): 20.0, ("mono", "2e-4"): 10.0,
@@ -134,7 +135,7 @@ def test_collect_picks_the_higher_order_reference_and_measures_against_it(tmp_pa
         write_run(tmp_path / p.folder, model, float(dt), amplitude[model](float(dt)), walls[model, dt],
                   order=2 if model == "mono" else None)
     # one more run that is not the same scene: measured but never compared
-    odd = study.Planned(study.Variant("odd", Path("c.toml")), "odd", ks.label, (("time.dt", "1e-3"),))
+    odd = planning.Planned(Variant("odd", Path("c.toml")), "odd", ks.label, (("time.dt", "1e-3"),))
     write_run(tmp_path / "odd", "kinematic-splitting", 1e-3, 1.0, 0.5, viscosity=0.04)
     planned.append(odd)
     runs = {p.label: read_run(p.label, tmp_path / p.folder) for p in planned}
@@ -225,7 +226,7 @@ def test_a_coupler_name_and_a_coupler_table_are_the_same_override():
     from multilayer.case.casefile import load_case
 
     plain = load_case(PULSE)
-    for item in study.parse_couplers('kinematic-splitting,{model="kinematic-splitting"}', ["kinematic-splitting"]):
+    for item in planning.parse_couplers('kinematic-splitting,{model="kinematic-splitting"}', ["kinematic-splitting"]):
         case = load_case(PULSE, [item.override])
         assert case.digest == plain.digest and case.coupler.model == "kinematic-splitting"
 

@@ -91,7 +91,7 @@ def test_toml_text_reads_back_to_the_same_value():
 def test_the_grid_expands_into_validated_cases_with_the_digests_of_explicit_overrides(tmp_path):
     case = with_sweep(tmp_path, GRID)
     registry = Registry.load()
-    runs, invalid = sweep.plan(case, sweep.sweep_axes(sweep.read_table(case), []), SMALL, registry)
+    runs, invalid = sweep.plan(case, sweep.sweep_axes(sweep.read_sweep_table(case), []), SMALL, registry)
     assert not invalid
     assert [r.values for r in runs] == [
         (("time.dt", "0.0001"), ("layers[0].young", "500000.0")), (("time.dt", "0.0001"), ("layers[0].young", "1000000.0")),
@@ -107,7 +107,7 @@ def test_zip_varies_keys_together_and_vary_replaces_or_adds_an_axis(tmp_path):
     table = ('[sweep]\ngrid = { "time.dt" = [1e-4, 5e-5] }\n'
              'zip = { "layers[0].young" = [5e5, 1e6], "layers[0].thickness" = [0.1, 0.2] }\n\n')
     case = with_sweep(tmp_path, table)
-    parsed = sweep.read_table(case)
+    parsed = sweep.read_sweep_table(case)
     assert parsed.size == 4
     axes = sweep.sweep_axes(parsed, ["time.dt=2e-4,1e-4,5e-5", "mesh.nz=12,24"])
     points = grid.combinations(axes)
@@ -125,7 +125,7 @@ def test_a_whole_inline_table_can_be_swept_and_equal_cases_are_planned_once(tmp_
              'tension = 2e5}, {model = "koiter-shell", density = 1.1, thickness = 0.1, young = 7.5e5, '
              'poisson = 0.49}], "time.dt" = [1e-4, 0.0001] }\n\n')
     case = with_sweep(tmp_path, table)
-    runs, invalid = sweep.plan(case, sweep.sweep_axes(sweep.read_table(case), []), SMALL, Registry.load())
+    runs, invalid = sweep.plan(case, sweep.sweep_axes(sweep.read_sweep_table(case), []), SMALL, Registry.load())
     assert not invalid
     assert len(runs) == 2  # 1e-4 and 0.0001 are one case
     assert [dict(r.values)["layers[0]"].split(",")[0] for r in runs] == ['{model = "wave-membrane"',

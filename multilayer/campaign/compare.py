@@ -6,30 +6,22 @@ Every variant runs into ``OUT/<label>/``, an ordinary results folder (see
 :mod:`multilayer.run.loop`), and the comparison is then made from those folders
 alone — ``summary.json``, ``series.csv`` and the wall snapshots — so every
 number of ``report.md`` / ``report.json`` can be recomputed from the runs'
-own files.  See ``docs/compare.md``.
+own files.  See ``docs/compare.md``; the command line is
+:mod:`multilayer.commands.compare`.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from multilayer.campaign import report
-from multilayer.campaign.executor import ExecutorError, Job, execute
+from multilayer.campaign.executor import Job, execute
 from multilayer.campaign.measures import compare_runs
-from multilayer.campaign.variants import (
-    Variant,
-    invalid_message,
-    load_variants,
-    make_variants,
-)
-from multilayer.commands.main import FAILED, INVALID, OK
-from multilayer.plugin.problems import CaseError
+from multilayer.campaign.variants import Variant
 from multilayer.plugin.registry import Registry
-from multilayer.results.figures import plot_spacetime
 from multilayer.results.reading import RunData, lumen_eta, read_run, without_nan
 
 
@@ -50,6 +42,9 @@ def run_variants(variants: Sequence[Variant], out: Path, registry: Registry, job
 def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData], registry: Registry,
                  vary: str | None = None) -> dict[str, Any]:
     """``report.json``, ``report.md``, ``probes.png`` and ``eta_spacetime.png`` in ``out``."""
+    # matplotlib is heavy (results.figures loads it): imported only when the figures are drawn
+    from multilayer.results.figures import plot_spacetime
+
     columns = compare_runs(runs, registry)
     for column, variant in zip(columns, variants):
         column["case_file"] = str(variant.case_file)
@@ -62,43 +57,9 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
         "variants": columns,
     }
     (out / "report.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
-    report.plot_probes(runs, out / "probes.png")
+    report.plot_compared_probes(runs, out / "probes.png")
     radius = (first.get("geometry") or {}).get("radius")
     fields = {run.label: lumen_eta(run.folder, radius) for run in runs} if radius else {}
     plot_spacetime(fields, out / "eta_spacetime.png")
     (out / "report.md").write_text(report.markdown(data))
     return data
-
-
-def main(case_files: Sequence[Path], out: Path, vary: str | None, overrides: Sequence[str],
-         registry: Registry, jobs: int = 1, plugins: Sequence[str] = (), scheduler: str | None = None) -> int:
-    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary, --jobs) is invalid."""
-    if jobs < 1:
-        print(f"compare: invalid command line\n--jobs = {jobs}: expected an integer >= 1 (runs at once)",
-              file=sys.stderr)
-        return INVALID
-    try:
-        variants = make_variants(case_files, vary, overrides)
-    except CaseError as exc:
-        print("compare: invalid command line", file=sys.stderr)
-        print(str(exc), file=sys.stderr)
-        return INVALID
-    loaded, invalid = load_variants(variants, registry)
-    if invalid:
-        print(invalid_message("compare", variants, invalid), file=sys.stderr)
-        return INVALID
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    variants = [v for v, _ in loaded]  # with the snapshot cadence they ran with
-    try:
-        runs = run_variants(variants, out, registry, jobs, plugins, scheduler)
-    except ExecutorError as exc:
-        print(f"compare: {exc}", file=sys.stderr)
-        return INVALID
-    data = write_report(out, variants, runs, registry, vary)
-    failed = [c["label"] for c in data["variants"] if c["status"] != "ok"]
-    print(f"report: {out / 'report.md'}")
-    if failed:
-        print(f"compare: {len(failed)} variant(s) failed: {', '.join(failed)}", file=sys.stderr)
-        return FAILED
-    return OK

@@ -39,6 +39,9 @@ from types import ModuleType
 
 import attrs
 
+from multilayer.campaign.variants import run_variant
+from multilayer.case.casefile import load_case
+from multilayer.plugin.loading import import_plugin
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, RegistryError
 
@@ -90,8 +93,6 @@ class Plugin:
     def load(self) -> ModuleType:
         """Import the module here (a shipped file from its source)."""
         if self.source is None:
-            from multilayer.plugin.loading import import_plugin
-
             return import_plugin(self.spec)
         spec = importlib.util.spec_from_loader(self.name, loader=None, origin=self.spec)
         module = importlib.util.module_from_spec(spec)
@@ -125,9 +126,6 @@ def worker_registry(plugins: tuple[Plugin, ...]) -> Registry:
 
 def run_job(job: Job, registry: Registry) -> tuple[str, str]:
     """Run one job into its folder with ``registry``: (status, reason); never raises for a run's failure."""
-    from multilayer.campaign.variants import run_variant
-    from multilayer.case.casefile import load_case
-
     try:
         case = load_case(job.case_file, job.overrides, registry)
     except CaseError as exc:  # validated before; only a plugin or file that changed in between gets here
@@ -258,6 +256,7 @@ def _on_dask(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], pro
     if not dask_installed():
         raise ExecutorError("running on Dask needs dask.distributed: pip install 'multilayer[dask]'"
                             + ("" if scheduler else " (or use --jobs 1)"))
+    # dask is an optional extra (and heavy): imported only to run on it
     import dask
     import distributed
 

@@ -6,10 +6,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from matplotlib.figure import Figure
-
-from multilayer.results.figures import save_figure
-
 NONE = "—"
 
 
@@ -106,8 +102,16 @@ def markdown(data: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def plot_probes(runs: Sequence[Any], path: Path) -> None:
-    """One panel per probe (every probe of any run), all runs overlaid against t."""
+def plot_compared_probes(runs: Sequence[Any], path: Path) -> None:
+    """One panel per probe (every probe of any run), all runs overlaid against t.
+
+    (:func:`multilayer.results.figures.plot_probes` draws the probes of one run.)
+    """
+    # matplotlib is heavy (and results.figures loads it): imported only when the figure is drawn
+    from matplotlib.figure import Figure
+
+    from multilayer.results.figures import save_figure
+
     probes: dict[str, Mapping[str, Any]] = {}
     for run in runs:
         for p in run.probes:

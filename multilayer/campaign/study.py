@@ -1,60 +1,54 @@
-"""``multilayer study``: speed against error of couplers × Δt (× mesh), in one command.
+"""``multilayer study``: speed against error of couplers × Δt (× mesh), collected from the runs' folders.
 
 Plan → execute → collect:
 
-* :func:`plan` turns ``--couplers`` and every ``--vary`` into a grid of runs,
-  each a :class:`~multilayer.campaign.variants.Variant` (case file + overrides) with
-  its results folder ``OUT/<coupler>/<key=value>/...``;
-* :func:`multilayer.campaign.executor.execute` runs them (here with ``--jobs 1``,
-  else on Dask), each into an ordinary results folder
+* :func:`multilayer.campaign.planning.plan` turns ``--couplers`` and every
+  ``--vary`` into a grid of runs, each a
+  :class:`~multilayer.campaign.variants.Variant` (case file + overrides) with its
+  results folder ``OUT/<coupler>/<key=value>/...``;
+* :func:`multilayer.campaign.planning.run_planned` runs them
+  (:func:`multilayer.campaign.executor.execute`: here with ``--jobs 1``, else on
+  Dask), each into an ordinary results folder
   (:func:`multilayer.campaign.variants.run_variant`);
 * :func:`collect` measures everything from those folders alone
   (:func:`multilayer.results.reading.read_run`): errors against a reference,
   observed orders, the Pareto front of wall time against error, the cost of
-  reaching a target error.
+  reaching a target error; :func:`study_data` is the whole ``study.json``,
+  which :mod:`multilayer.campaign.study_report` writes with ``study.md`` and
+  the figures.
 
-The measurements are pure functions of numbers and arrays
-(:func:`relative_linf`, :func:`probe_errors`, :func:`observed_orders`,
-:func:`pareto_front`, :func:`richardson`, :func:`richardson_order`,
-:func:`cost_to_target`).  See ``docs/study.md``.
+The command line (its options, messages and exit codes) is
+:mod:`multilayer.commands.study`.
+
+The measurements are pure functions of numbers and arrays, in
+:mod:`multilayer.campaign.accuracy` (:func:`~multilayer.campaign.accuracy.relative_linf`,
+:func:`~multilayer.campaign.accuracy.probe_errors`,
+:func:`~multilayer.campaign.accuracy.observed_orders`,
+:func:`~multilayer.campaign.accuracy.pareto_front`,
+:func:`~multilayer.campaign.accuracy.richardson`,
+:func:`~multilayer.campaign.accuracy.richardson_order`,
+:func:`~multilayer.campaign.accuracy.cost_to_target`).  See ``docs/study.md``.
 """
 
 from __future__ import annotations
 
-import json
-import math
-import re
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import attrs
-import numpy as np
 
-from multilayer.campaign.executor import ExecutorError, Job, execute, print_err
-from multilayer.campaign.variants import (
-    Variant,
-    invalid_message,
-    load_variants,
-    sanitize,
-    unique,
+from multilayer.campaign.accuracy import (
+    cost_to_target,
+    observed_orders,
+    pareto_front,
+    probe_errors,
+    richardson,
+    richardson_order,
 )
-from multilayer.case import grid
-from multilayer.case.casefile import load_case
-from multilayer.case.grid import Setting, combinations, vary_axis
-from multilayer.case.keys import parse_value, split_values
-from multilayer.commands.main import FAILED, INVALID, OK
-from multilayer.plugin.problems import CaseError, Problem, did_you_mean
-from multilayer.plugin.registry import Registry
-from multilayer.results.folder import holds_finished_run
-from multilayer.results.reading import (
-    RunData,
-    dof_counts,
-    finite_rows,
-    read_run,
-    without_nan,
-)
+from multilayer.campaign.planning import REFERENCE, CouplerChoice, Planned
+from multilayer.plugin.problems import Problem, did_you_mean
+from multilayer.results.reading import RunData, dof_counts
 
 #: target peak errors of the cost table
 TARGETS = (0.05, 0.01)
@@ -66,465 +60,6 @@ FREE_KEYS = ("title", "coupler", "time.dt", "time.end", "mesh", "output.every")
 SIBLING_KEYS = ("title", "time.dt", "output.every")
 #: an observed order outside this range is not trusted for Richardson: the formal order is used
 ORDER_RANGE = (0.5, 4.0)
-REFERENCE = "reference"
-_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_.+-]*$")
-
-# -- the grid ------------------------------------------------------------------
-
-
-@attrs.frozen
-class CouplerChoice:
-    """One ``--couplers`` item: its label and the override that selects it (None: the case's own)."""
-
-    label: str
-    model: str
-    override: str | None = None
-
-
-@attrs.frozen
-class Planned:
-    """One run of the grid: a variant (labelled ``<coupler>/<key=value>/...``) and its results folder."""
-
-    variant: Variant
-    folder: str  #: relative to the study folder
-    coupler: str  #: the coupler's label
-    values: tuple[tuple[str, str], ...] = ()  #: the ``--vary`` (key, value) of this run
-
-    @property
-    def label(self) -> str:
-        return self.variant.label
-
-
-def _text(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
-
-
-def coupler_label(model: str, params: Mapping[str, Any]) -> str:
-    """``model``, or ``model[key=value,...]`` with parameters.
-
-    >>> coupler_label("kinematic-splitting", {})
-    'kinematic-splitting'
-    >>> coupler_label("monolithic", {"scheme": "crank-nicolson", "beta": 0.25})
-    'monolithic[scheme=crank-nicolson,beta=0.25]'
-    """
-    if not params:
-        return model
-    return f"{model}[" + ",".join(f"{k}={_text(v)}" for k, v in params.items()) + "]"
-
-
-def parse_couplers(text: str, names: Sequence[str]) -> list[CouplerChoice]:
-    """The ``--couplers`` list: each item a coupler name or an inline table that replaces ``[coupler]``.
-
-    CaseError at ``--couplers`` for an item that is neither, or names no
-    coupler plugin in ``names``.
-
-    >>> [c.label for c in parse_couplers('a, {model="b", beta=0.5}', ["a", "b"])]
-    ['a', 'b[beta=0.5]']
-    >>> parse_couplers('{model="b", beta=0.5}', ["b"])[0].override
-    'coupler={model="b", beta=0.5}'
-    >>> parse_couplers("aa", ["a", "b"])
-    Traceback (most recent call last):
-    ...
-    multilayer.plugin.problems.CaseError: --couplers = 'aa': no such coupler plugin; did you mean 'a'?
-    """
-    try:
-        items = split_values(text)
-    except ValueError as exc:
-        raise CaseError([Problem("--couplers", text, f"cannot split the values: {exc}")]) from None
-    problems, choices = [], []
-    for item in items:
-        if not item:
-            problems.append(Problem("--couplers", text, "an empty item", "two commas in a row, or one at an end?"))
-            continue
-        value = parse_value(item)
-        if isinstance(value, str) and _NAME.match(value):
-            model, params = value, {}
-        elif isinstance(value, Mapping) and isinstance(value.get("model"), str):
-            model, params = value["model"], {k: v for k, v in value.items() if k != "model"}
-        else:
-            problems.append(Problem("--couplers", item, 'expected a coupler name or an inline table '
-                                    '{model="NAME", ...} replacing [coupler]'))
-            continue
-        if model not in names:
-            problems.append(Problem("--couplers", model, "no such coupler plugin",
-                                    did_you_mean(model, names) or "available: " + ", ".join(names)))
-            continue
-        choices.append(CouplerChoice(coupler_label(model, params), model, f"coupler={item}"))
-    if problems:
-        raise CaseError(problems)
-    return [attrs.evolve(c, label=label) for c, label in zip(choices, unique([c.label for c in choices]))]
-
-
-def parse_varies(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
-    """Every ``--vary KEY=A,B,...`` (:func:`multilayer.case.grid.parse_varies`); the coupler has ``--couplers``.
-
-    >>> parse_varies(["time.dt=1e-4,5e-5", "mesh.nz=12,24"])
-    [('time.dt', ['1e-4', '5e-5']), ('mesh.nz', ['12', '24'])]
-    """
-    return grid.parse_varies(texts, {"coupler": "the coupler is chosen with --couplers"})
-
-
-def plan(case_file: Path, couplers: Sequence[CouplerChoice], varies: Sequence[tuple[str, Sequence[str]]],
-         overrides: Sequence[str] = ()) -> list[Planned]:
-    """The grid: every coupler × every combination of the varied values.
-
-    Overrides in order: ``--set``, the coupler, the varied values.  The
-    folder ``reference`` is kept free for ``--reference``.
-
-    >>> runs = plan(Path("c.toml"), [CouplerChoice("a", "a", "coupler=a")], [("time.dt", ["1e-4", "5e-5"])],
-    ...             ["mesh.nz=12"])
-    >>> [(r.label, r.folder) for r in runs]
-    [('a/time.dt=1e-4', 'a/time.dt=1e-4'), ('a/time.dt=5e-5', 'a/time.dt=5e-5')]
-    >>> runs[1].variant.overrides
-    ('mesh.nz=12', 'coupler=a', 'time.dt=5e-5')
-    """
-    return plan_grid(case_file, couplers, [vary_axis(key, values) for key, values in varies], overrides)
-
-
-def plan_grid(case_file: Path, couplers: Sequence[CouplerChoice], axes: Sequence[Sequence[Setting]],
-              overrides: Sequence[str] = ()) -> list[Planned]:
-    """Every coupler × every combination of one setting per axis.
-
-    Parameters
-    ----------
-    case_file : Path
-        The case every run starts from.
-    couplers : sequence of CouplerChoice
-        The first level of the grid (folders ``<coupler>/``).
-    axes : sequence of sequences of Setting
-        The next levels, in order (folders ``<key=value>/``).
-    overrides : sequence of str
-        ``--set``, applied first; then the coupler's, then each axis's.
-
-    Returns
-    -------
-    list of Planned
-        Coupler-major, then the axes in order.  The folder ``reference``
-        is kept free for ``--reference``.
-
-    Examples
-    --------
-    >>> ratio = [Setting("ratio", "1", "layers[0].density=5.0")]
-    >>> run, = plan_grid(Path("c.toml"), [CouplerChoice("a", "a", "coupler=a")],
-    ...                  [ratio, vary_axis("time.dt", ["1e-4"])])
-    >>> run.folder, run.values
-    ('a/ratio=1/time.dt=1e-4', (('ratio', '1'), ('time.dt', '1e-4')))
-    >>> run.variant.overrides
-    ('coupler=a', 'layers[0].density=5.0', 'time.dt=1e-4')
-    """
-    coupler_folders = unique([REFERENCE, *(sanitize(c.label) for c in couplers)])[1:]
-    axes = [list(zip(axis, unique([sanitize(f"{s.key}={s.value}") for s in axis]))) for axis in axes]
-    runs = []
-    for choice, coupler_folder in zip(couplers, coupler_folders):
-        for combo in combinations([[(pair,) for pair in axis] for axis in axes]):
-            values = tuple((s.key, s.value) for s, _ in combo)
-            label = "/".join([choice.label, *(f"{k}={v}" for k, v in values)])
-            sets = (*overrides, *([choice.override] if choice.override else []), *(s.override for s, _ in combo))
-            runs.append(Planned(Variant(label, case_file, sets), "/".join([coupler_folder, *(f for _, f in combo)]),
-                                choice.label, values))
-    return runs
-
-
-# -- running -------------------------------------------------------------------
-
-
-def finished_run(variant: Variant, folder: Path, registry: Registry) -> bool:
-    """True when ``folder`` holds an ok run of exactly ``variant``'s case (same digest)."""
-    return holds_finished_run(folder, load_case(variant.case_file, variant.overrides, registry).digest)
-
-
-def run_variants(variants: Sequence[Variant], folders: Mapping[str, Path], workers: int, registry: Registry,
-                 plugins: Sequence[str] = (), scheduler: str | None = None, reuse: bool = False) -> dict[str, RunData]:
-    """Run every (validated) variant into ``folders[label]`` in this order, then read each folder back.
-
-    :func:`multilayer.campaign.executor.execute` (here with one worker, else on
-    Dask) with one line per finished run on stderr; the result is
-    :func:`multilayer.results.reading.read_run` of each folder, by label, in the
-    order of ``variants``, with the status and reason the run returned.
-    With ``reuse``, a folder that already holds an ok run of the same case
-    (:func:`finished_run`) is read as it is, not run again.
-
-    Raises
-    ------
-    multilayer.campaign.executor.ExecutorError
-        The runs cannot be started as asked (Dask missing for ``scheduler``).
-    """
-    kept = [v for v in variants if reuse and finished_run(v, folders[v.label], registry)]
-    for v in kept:
-        print(f"[reused] {v.label}: ok, already in {folders[v.label]}", file=sys.stderr)
-    work = [Job(v.label, v.case_file, v.overrides, folders[v.label]) for v in variants if v not in kept]
-    status = execute(work, workers, registry, plugins, log=print_err, scheduler=scheduler)
-    status.update({v.label: ("ok", "") for v in kept})
-    return {v.label: read_run(v.label, folders[v.label], *status[v.label]) for v in variants}
-
-
-# -- measurements (pure) -------------------------------------------------------
-
-
-def _common_span(t: np.ndarray, t_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """Masks of the rows of ``t`` and of ``t_ref`` inside the time span both cover."""
-    if not len(t) or not len(t_ref):
-        return None
-    lo, hi = max(t[0], t_ref[0]), min(t[-1], t_ref[-1])
-    on, ref_on = (t >= lo) & (t <= hi), (t_ref >= lo) & (t_ref <= hi)
-    return (on, ref_on) if on.any() and ref_on.any() else None
-
-
-def relative_linf(t: np.ndarray, y: np.ndarray, t_ref: np.ndarray, y_ref: np.ndarray) -> float | None:
-    """max_t |y − y_ref| / max_t |y_ref|, the reference interpolated linearly onto ``t``.
-
-    Only the times both series cover count: a row of ``t`` outside the
-    reference's span is skipped.  The scale max |y_ref| is taken over the
-    reference's own rows in that span, so it does not depend on the run.
-
-    Parameters
-    ----------
-    t, y : ndarray
-        The run's times (s) and values; rows with a NaN are left out.
-    t_ref, y_ref : ndarray
-        The reference's, on its own (usually finer) time grid.
-
-    Returns
-    -------
-    float or None
-        The relative error; None without common rows or when the reference
-        is 0 on them.
-
-    Examples
-    --------
-    >>> t_ref = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
-    >>> relative_linf(np.array([1.0, 2.0, 3.0]), np.array([0.0, 1.5, 0.0]), t_ref, np.array([0.0, 0.0, 1.0, 0.0, 0.0]))
-    0.5
-    >>> relative_linf(np.array([1.0, 2.0, 5.0]), np.array([0.0, 1.5, 9.0]), t_ref, np.array([0.0, 0.0, 1.0, 0.0, 0.0]))
-    0.5
-    """
-    (t, y), (t_ref, y_ref) = finite_rows(t, y), finite_rows(t_ref, y_ref)
-    span = _common_span(t, t_ref)
-    if span is None:
-        return None
-    on, ref_on = span
-    scale = float(np.max(np.abs(y_ref[ref_on])))
-    if scale == 0.0:
-        return None
-    return float(np.max(np.abs(y[on] - np.interp(t[on], t_ref, y_ref)))) / scale
-
-
-def probe_errors(t: np.ndarray, y: np.ndarray, t_ref: np.ndarray, y_ref: np.ndarray) -> dict[str, float | None]:
-    """A run's ``eta`` series against the reference's, over the times both cover.
-
-    ``relative_linf`` (:func:`relative_linf`); ``peak`` = max η and
-    ``peak_time`` its (first) time, each series over its own rows;
-    ``peak_error`` = |peak − peak_ref| / |peak_ref|; ``arrival_diff_s`` =
-    peak_time − peak_time_ref.
-
-    Parameters
-    ----------
-    t, y, t_ref, y_ref : ndarray
-        As for :func:`relative_linf`.
-
-    Returns
-    -------
-    dict
-        ``relative_linf``, ``peak``, ``peak_time``, ``peak_ref``,
-        ``peak_time_ref``, ``peak_error``, ``arrival_diff_s``; all None
-        without common times.
-
-    Examples
-    --------
-    >>> e = probe_errors(np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.9, 0.3]),
-    ...                  np.array([0.5, 1.5, 2.5, 3.5]), np.array([0.0, 0.5, 1.0, 0.2]))
-    >>> e["peak_error"], e["arrival_diff_s"]
-    (0.09999999999999998, -0.5)
-    """
-    none = dict.fromkeys(("relative_linf", "peak", "peak_time", "peak_ref", "peak_time_ref", "peak_error",
-                          "arrival_diff_s"))
-    (t, y), (t_ref, y_ref) = finite_rows(t, y), finite_rows(t_ref, y_ref)
-    span = _common_span(t, t_ref)
-    if span is None:
-        return none
-    on, ref_on = span
-    i, j = int(np.argmax(y[on])), int(np.argmax(y_ref[ref_on]))
-    peak, peak_ref = float(y[on][i]), float(y_ref[ref_on][j])
-    peak_time, peak_time_ref = float(t[on][i]), float(t_ref[ref_on][j])
-    return {
-        "relative_linf": relative_linf(t, y, t_ref, y_ref),
-        "peak": peak, "peak_time": peak_time, "peak_ref": peak_ref, "peak_time_ref": peak_time_ref,
-        "peak_error": abs(peak - peak_ref) / abs(peak_ref) if peak_ref else None,
-        "arrival_diff_s": peak_time - peak_time_ref,
-    }
-
-
-def observed_orders(dt: Sequence[float], errors: Sequence[float | None]) -> list[float | None]:
-    """p = log(e_coarse/e_fine) / log(dt_coarse/dt_fine) between successive Δt (coarse to fine).
-
-    Parameters
-    ----------
-    dt : sequence of float
-        The time steps, strictly decreasing (ValueError otherwise).
-    errors : sequence of float or None
-        The error of each run.
-
-    Returns
-    -------
-    list of float or None
-        ``result[i]`` is the order between runs i and i + 1; None where an
-        error is missing or not > 0.
-
-    Examples
-    --------
-    >>> observed_orders([4e-4, 2e-4, 1e-4], [8.0, 4.0, None])
-    [1.0, None]
-    """
-    if any(a <= b for a, b in zip(dt, dt[1:])):
-        raise ValueError(f"Δt must decrease strictly: {list(dt)}")
-    out: list[float | None] = []
-    for (dt_c, e_c), (dt_f, e_f) in zip(zip(dt, errors), zip(dt[1:], errors[1:])):
-        ok = e_c is not None and e_f is not None and e_c > 0 and e_f > 0
-        out.append(math.log(e_c / e_f) / math.log(dt_c / dt_f) if ok else None)
-    return out
-
-
-def pareto_front(cost: Sequence[float], error: Sequence[float]) -> list[int]:
-    """Indices of the points no other point beats: none as cheap and as accurate, and better in one.
-
-    Parameters
-    ----------
-    cost, error : sequence of float
-        Wall time and error of each point.
-
-    Returns
-    -------
-    list of int
-        The indices of the non-dominated points, in their order; two equal
-        points do not beat each other.
-
-    Examples
-    --------
-    >>> pareto_front([1.0, 2.0, 3.0, 2.5, 1.0], [0.5, 0.1, 0.01, 0.2, 0.6])
-    [0, 1, 2]
-    """
-    return [i for i, (c, e) in enumerate(zip(cost, error))
-            if not any(c2 <= c and e2 <= e and (c2 < c or e2 < e) for c2, e2 in zip(cost, error))]
-
-
-def richardson(difference: float, ratio: float, order: float) -> float:
-    """Richardson's error estimate of the finer of two runs: |X_fine − X_coarse| / (r^p − 1).
-
-    For X(Δt) = X + C Δt^p and r = Δt_coarse/Δt_fine it is exactly |X(Δt_fine) − X|.
-
-    Parameters
-    ----------
-    difference : float
-        |X_fine − X_coarse|, in whatever measure X is compared.
-    ratio : float
-        r = Δt_coarse / Δt_fine > 1.
-    order : float
-        p, observed or formal.
-
-    Returns
-    -------
-    float
-        The estimated error of the finer run.
-
-    Examples
-    --------
-    >>> richardson(0.3, 2.0, 1.0), richardson(0.4, 3.0, 2.0)
-    (0.3, 0.05)
-    """
-    return difference / (ratio**order - 1.0)
-
-
-def richardson_order(dt: Sequence[float], d_coarse: float, d_fine: float) -> float | None:
-    """The order p of X(Δt) = X + C Δt^p seen in three runs Δt₀ > Δt₁ > Δt₂.
-
-    ``d_coarse`` = |X(Δt₀) − X(Δt₁)|, ``d_fine`` = |X(Δt₁) − X(Δt₂)|.  With
-    one ratio r it is log(d_coarse/d_fine)/log r; otherwise the root of
-    (Δt₀^p − Δt₁^p)/(Δt₁^p − Δt₂^p) = d_coarse/d_fine in p ∈ [0.01, 20].
-
-    Parameters
-    ----------
-    dt : sequence of three floats
-        Δt₀ > Δt₁ > Δt₂.
-    d_coarse, d_fine : float
-        The two successive differences.
-
-    Returns
-    -------
-    float or None
-        p; None when a difference is not > 0 or there is no root.
-
-    Examples
-    --------
-    >>> richardson_order([4.0, 2.0, 1.0], 12.0, 3.0)
-    2.0
-    >>> round(richardson_order([5.0, 2.0, 1.0], 21.0, 3.0), 12)
-    2.0
-    """
-    if not (d_coarse > 0 and d_fine > 0):
-        return None
-    x0, x1 = dt[0] / dt[2], dt[1] / dt[2]
-    q = d_coarse / d_fine
-    if math.isclose(x0 / x1, x1, rel_tol=1e-9):
-        return math.log(q) / math.log(x1)
-    from scipy.optimize import brentq
-
-    def mismatch(p: float) -> float:
-        return (x0**p - x1**p) / (x1**p - 1.0) - q
-
-    lo, hi = 0.01, 20.0
-    if mismatch(lo) * mismatch(hi) > 0:
-        return None
-    return float(brentq(mismatch, lo, hi, xtol=1e-14, rtol=1e-14))
-
-
-def cost_to_target(wall: Sequence[float], error: Sequence[float], target: float, finest: int | None = None,
-                   order: float | None = None) -> dict[str, Any]:
-    """Wall time to bring the error to ``target``, from one coupler's runs.
-
-    The cheapest run with error ≤ target (``how`` = "measured"); else an
-    extrapolation from the finest run ``finest`` with the observed order
-    p: the time grows like 1/Δt and the error like Δt^p, so
-    t = t_run·(e_run/target)^(1/p) ("estimated"); "not reached" without
-    such a run or a p > 0.
-
-    Parameters
-    ----------
-    wall, error : sequence of float
-        Wall time (s) and error of each run of the coupler.
-    target : float
-        The error to reach.
-    finest : int, optional
-        Index of the run to extrapolate from.
-    order : float, optional
-        The observed order p of the error near that run.
-
-    Returns
-    -------
-    dict
-        ``how``, ``wall_time_s`` (None when not reached), ``run`` (the
-        index measured or extrapolated from), ``order`` (p when estimated).
-
-    Examples
-    --------
-    >>> cost_to_target([1.0, 2.0, 4.0], [0.2, 0.1, 0.05], 0.1)
-    {'how': 'measured', 'wall_time_s': 2.0, 'run': 1, 'order': None}
-    >>> cost_to_target([1.0, 2.0, 4.0], [0.2, 0.1, 0.05], 0.0125, finest=2, order=2.0)
-    {'how': 'estimated', 'wall_time_s': 8.0, 'run': 2, 'order': 2.0}
-    >>> cost_to_target([1.0], [0.2], 0.01, finest=0)["how"]
-    'not reached'
-    """
-    met = [i for i, e in enumerate(error) if e <= target]
-    if met:
-        i = min(met, key=lambda k: wall[k])
-        return {"how": "measured", "wall_time_s": wall[i], "run": i, "order": None}
-    if finest is not None and order is not None and order > 0:
-        return {"how": "estimated", "wall_time_s": wall[finest] * (error[finest] / target) ** (1.0 / order),
-                "run": finest, "order": order}
-    return {"how": "not reached", "wall_time_s": None, "run": None, "order": None}
 
 
 def case_differences(a: Any, b: Any, free: Sequence[str] = (), path: str = "") -> list[str]:
@@ -542,7 +77,6 @@ def case_differences(a: Any, b: Any, free: Sequence[str] = (), path: str = "") -
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
         return [d for i, (x, y) in enumerate(zip(a, b)) for d in case_differences(x, y, free, f"{path}[{i}]")]
     return [] if a == b else [path]
-
 
 # -- collecting ------------------------------------------------------------------
 
@@ -625,7 +159,7 @@ def _measured(row: Mapping[str, Any]) -> bool:
     return row["status"] == "ok" and not row["reference"] and row["error"] is not None
 
 
-def _groups(rows: Sequence[dict[str, Any]]) -> dict[tuple, list[dict[str, Any]]]:
+def dt_sequences(rows: Sequence[dict[str, Any]]) -> dict[tuple, list[dict[str, Any]]]:
     """Runs of one coupler with the same values of every varied key but time.dt, coarse Δt first."""
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for row in rows:
@@ -638,7 +172,7 @@ def _groups(rows: Sequence[dict[str, Any]]) -> dict[tuple, list[dict[str, Any]]]
 def orders_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """The observed orders of ``error`` and ``peak_error`` between successive Δt of each group."""
     out = []
-    for (coupler, others), group in _groups(rows).items():
+    for (coupler, others), group in dt_sequences(rows).items():
         dts = [r["dt"] for r in group]
         if len(set(dts)) < len(dts):
             continue  # the same Δt twice (a --set fixed it): no order
@@ -778,287 +312,39 @@ def collect(planned: Sequence[Planned], runs: Mapping[str, RunData], couplers: S
     }
 
 
-# -- report ----------------------------------------------------------------------
+def unknown_probes(names: Sequence[str], runs: Mapping[str, RunData]) -> list[Problem]:
+    """A problem at ``--probes`` for each name that is not an η probe of any of the runs.
 
-ERROR_AXIS = "relative L∞ error of η (max over probes)"
-
-
-def _pct(value: float | None) -> str:
-    return "—" if value is None else f"{100 * value:.3g} %"
-
-
-def markdown(data: Mapping[str, Any]) -> str:
-    """``study.md``: the command, the reference, then runs, orders, Pareto front and costs."""
-    from multilayer.campaign.report import cell
-
-    ref, rows = data["reference"], data["runs"]
-    lines = [f"# Study: {data['title']}" if data["title"] else "# Study", "", "    " + data["command"], ""]
-    if ref["label"] is None:
-        lines += ["No reference: no run ended ok, so no error is measured.", ""]
-    else:
-        how = ("`--reference`, run into `reference/`" if ref["source"] == "--reference"
-               else "the finest run of the highest-order coupler")
-        lines += [f"Reference: `{ref['label']}` ({how}; status {ref['status']}, Δt = {cell(ref.get('dt'))} s, "
-                  f"nz = {cell(ref.get('nz'))}, formal order {cell(ref.get('order'))}).", ""]
-        rich = ref["richardson"]
-        if rich.get("estimated"):
-            parts = [f"{name} ≈ {_pct(rich[key]['estimate'])} (p = {cell(rich[key]['order'])}, "
-                     f"{rich[key]['order_from']})" for key, name in (("error", "error"), ("peak_error", "peak error"))]
-            scaled = (f", times (Δt_ref/Δt_fine)^p = {cell(rich['error']['scale'])} for the reference's Δt"
-                      if rich["error"]["scale"] != 1.0 else "")
-            lines += [f"Its own error by Richardson from `{rich['coarse']}` and `{rich['fine']}` (Δt ratio "
-                      f"{cell(rich['ratio'])}{scaled}): " + "; ".join(parts) + ". Errors below that are not resolved.",
-                      ""]
-        else:
-            lines += [f"Its own error is not estimated: {rich['note']}.", ""]
-    if data["space_error_included"]:
-        lines += ["Some runs are on another mesh (nz) than the reference: their error includes the space "
-                  "error, not only the time error.", ""]
-    lines += ["`error`: max over the η probes of max_t |η − η_ref| / max_t |η_ref|; `peak error`: max over the "
-              "η probes of |max_t η − max_t η_ref| / |max_t η_ref|; `arrival`: the largest |time of max η − the "
-              "reference's| over the probes.", ""]
-    if isinstance(data.get("probes"), list):
-        lines += ["The η probes measured (`--probes`): " + ", ".join(f"`{p}`" for p in data["probes"]) + ".", ""]
-    lines += ["## Runs", "", "| run | status | Δt (s) | nz | wall time (s) | steps | DOFs | error | peak error "
-              "| arrival (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        arrivals = [abs(e["arrival_diff_s"]) for e in r["probes"].values() if e["arrival_diff_s"] is not None]
-        error = "(reference)" if r["reference"] else ("not compared" if r["not_compared"] else cell(r["error"]))
-        lines.append(f"| `{r['label']}` | {r['status']} | {cell(r['dt'])} | {cell(r['nz'])} | "
-                     f"{cell(r['wall_time_s'])} | {cell(r['steps'])} | {cell(r['dofs_total'])} | {error} | "
-                     f"{cell(r['peak_error'])} | {cell(max(arrivals) if arrivals else None)} |")
-    notes = [f"- `{r['label']}`: {r['reason'] or r['not_compared']}" for r in rows
-             if r["status"] != "ok" or r["not_compared"]]
-    if notes:
-        lines += ["", "Failed or not compared:", "", *notes]
-    lines += ["", "## Observed orders", ""]
-    if data["orders"]:
-        lines += ["p = log(e_coarse/e_fine) / log(Δt_coarse/Δt_fine) between successive Δt of one coupler "
-                  "(other keys equal). Against a reference of the same Δt sequence the pair next to it "
-                  "over-estimates p (its error is the whole difference to a nearby run).", "",
-                  "| coupler | other keys | Δt coarse → fine (s) | order of error | order of peak error |",
-                  "|---|---|---|---|---|"]
-        for o in data["orders"]:
-            others = ", ".join(f"{k}={v}" for k, v in o["group"].items()) or "—"
-            lines.append(f"| `{o['coupler']}` | {others} | {cell(o['dt_coarse'])} → {cell(o['dt_fine'])} | "
-                         f"{cell(o['error_order'])} | {cell(o['peak_error_order'])} |")
-    else:
-        lines.append("No order: no two measured runs of one coupler differ only in Δt.")
-    lines += ["", "## Pareto front", "", "The runs no other run beats on both wall time and error; slower "
-              "runs in this table are more accurate. A run not listed is slower and less accurate than one "
-              "that is.", ""]
-    by_label = {r["label"]: r for r in rows}
-    if data["pareto"]:
-        lines += ["| run | wall time (s) | error | peak error |", "|---|---|---|---|"]
-        lines += [f"| `{label}` | {cell(by_label[label]['wall_time_s'])} | {cell(by_label[label]['error'])} | "
-                  f"{cell(by_label[label]['peak_error'])} |" for label in data["pareto"]]
-    else:
-        lines.append("No run with a measured error.")
-    lines += ["", "## Cost to reach a target peak error", "",
-              "The cheapest run within the target (measured); otherwise t_run·(e_run/target)^(1/p) from the "
-              "coupler's finest run and the observed order p of its peak error (estimated).", ""]
-    costs = data["cost_to_target"]
-    baseline = any(c["model"] == BASELINE for c in costs)
-    head = ["coupler"]
-    for target in TARGETS:
-        head += [f"{_pct(target)}: wall time (s)"] + ([f"{_pct(target)}: × {BASELINE}"] if baseline else [])
-    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for coupler in dict.fromkeys(c["coupler"] for c in costs):
-        cells = [f"`{coupler}`"]
-        for target in TARGETS:
-            c = next(e for e in costs if e["coupler"] == coupler and e["target"] == target)
-            if c["how"] == "measured":
-                cells.append(f"{cell(c['wall_time_s'])} (`{c['run']}`)")
-            elif c["how"] == "estimated":
-                cells.append(f"{cell(c['wall_time_s'])} (estimated, p = {cell(c['order'])})")
-            else:
-                cells.append("not reached")
-            if baseline:
-                cells.append(cell(c["ratio_to_baseline"]))
-        lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "![error against wall time](pareto.png)", "", "![error against Δt](orders.png)", ""]
-    return "\n".join(lines)
-
-
-def plot(data: Mapping[str, Any], out: Path) -> None:
-    """``pareto.png`` (error against wall time) and ``orders.png`` (error against Δt), log–log."""
-    from matplotlib.figure import Figure
-
-    from multilayer.results.figures import save_figure
-
-    rows = data["runs"]
-    fig = Figure(figsize=(7, 5), layout="constrained")
-    ax = fig.subplots()
-    colours = {}
-    for (coupler, _), group in _groups(rows).items():  # a line per Δt sweep, one colour per coupler
-        group = [r for r in group if r["error"] > 0 and r["wall_time_s"] is not None]
-        if group:
-            line, = ax.plot([r["wall_time_s"] for r in group], [r["error"] for r in group], "o-",
-                            color=colours.get(coupler), label=None if coupler in colours else coupler)
-            colours.setdefault(coupler, line.get_color())
-    front = [r for r in rows if r["label"] in data["pareto"] and r["error"] > 0]
-    if front:
-        ax.plot([r["wall_time_s"] for r in front], [r["error"] for r in front], "o", ms=12, mfc="none",
-                color="black", label="Pareto front")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.legend(fontsize="small")
-    else:
-        ax.text(0.5, 0.5, "no measured error", ha="center", va="center", transform=ax.transAxes)
-    ax.set_xlabel("wall time (s)")
-    ax.set_ylabel(ERROR_AXIS)
-    ax.set_title(f"against {data['reference']['label']}", fontsize="medium")
-    ax.grid(alpha=0.3, which="both")
-    save_figure(fig, out / "pareto.png")
-
-    fig = Figure(figsize=(7, 5), layout="constrained")
-    ax = fig.subplots()
-    groups = _groups(rows)
-    anchor = None
-    for (coupler, others), group in groups.items():
-        group = [r for r in group if r["error"] > 0]
-        if not group:
-            continue
-        name = coupler + "".join(f", {k}={v}" for k, v in others)
-        ax.plot([r["dt"] for r in group], [r["error"] for r in group], "o-", label=name)
-        anchor = anchor or (group[0]["dt"], group[0]["error"], group[-1]["dt"])
-    if anchor is not None:
-        dt0, e0, dt1 = anchor
-        x = np.array([min(dt1, dt0 / 2), dt0])
-        for slope, dashes in ((1, (4, 2)), (2, (1, 2))):
-            ax.plot(x, e0 * (x / dt0) ** slope, color="gray", ls="--", dashes=dashes, label=f"slope {slope}")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.legend(fontsize="small")
-    else:
-        ax.text(0.5, 0.5, "no measured error", ha="center", va="center", transform=ax.transAxes)
-    ax.set_xlabel("Δt (s)")
-    ax.set_ylabel(ERROR_AXIS)
-    ax.grid(alpha=0.3, which="both")
-    save_figure(fig, out / "orders.png")
-
-
-# -- the command -----------------------------------------------------------------
-
-
-def _own_coupler(case_file: Path, overrides: Sequence[str], registry: Registry) -> CouplerChoice:
-    case = load_case(case_file, overrides, registry)
-    return CouplerChoice(case.coupler.model, case.coupler.model)
-
-
-def grid_options(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], jobs: int,
-                 overrides: Sequence[str], registry: Registry,
-                 ) -> tuple[list[CouplerChoice], list[tuple[str, list[str]]], list[Problem]]:
-    """The options a grid command shares: ``--couplers``, every ``--vary``, ``--jobs``, ``--out``.
-
-    Returns
-    -------
-    tuple
-        The couplers (the case's own when ``couplers`` is None and the
-        options are valid), the ``--vary`` axes, and every problem found in
-        the command line; with problems the first two may be incomplete.
-
-    Raises
-    ------
-    CaseError
-        The case file itself is invalid (found while reading its own
-        coupler).
+    >>> case = {"output": {"probes": [{"name": "eta_mid", "quantity": "eta"}]}}
+    >>> run = RunData("a", Path("a"), {"case": case}, {"eta_mid": []})
+    >>> [str(p) for p in unknown_probes(["eta_mid", "eta_mdi"], {"a": run})]
+    ["--probes = 'eta_mdi': not an η probe of these runs; did you mean 'eta_mid'?"]
     """
-    problems: list[Problem] = []
-    if jobs < 1:
-        problems.append(Problem("--jobs", jobs, "expected an integer >= 1 (runs at once)"))
-    choices: list[CouplerChoice] = []
-    axes: list[tuple[str, list[str]]] = []
-    try:
-        choices = parse_couplers(couplers, registry.names("coupler")) if couplers is not None else []
-    except CaseError as exc:
-        problems += exc.problems
-    try:
-        axes = parse_varies(varies)
-    except CaseError as exc:
-        problems += exc.problems
-    if out.exists() and not out.is_dir():
-        problems.append(Problem("--out", str(out), "a file, not a folder"))
-    if not problems and not choices:
-        choices = [_own_coupler(case_file, overrides, registry)]
-    return choices, axes, problems
+    known = {p["name"] for r in runs.values() for p in r.probes if p["quantity"] == "eta"}
+    return [Problem("--probes", name, "not an η probe of these runs",
+                    did_you_mean(name, sorted(known)) or f"η probes: {', '.join(sorted(known))}")
+            for name in names if name not in known]
 
 
-def invalid_runs(command: str, variants: Sequence[Variant], registry: Registry) -> bool:
-    """Validate every run before any starts; print what is wrong with each (stderr) and say whether any is."""
-    _, invalid = load_variants(variants, registry, snapshots=False)
-    if invalid:
-        print(invalid_message(command, variants, invalid, "runs"), file=sys.stderr)
-    return bool(invalid)
+def study_data(planned: Sequence[Planned], runs: Mapping[str, RunData], couplers: Sequence[CouplerChoice],
+               axes: Sequence[tuple[str, Sequence[str]]], probes: Sequence[str] | None, *, command: str,
+               case_file: Path, overrides: Sequence[str]) -> dict[str, Any]:
+    """The whole of ``study.json``: what was asked (the command line, the case, the grid), then :func:`collect`.
 
-
-def main(case_file: Path, out: Path, couplers: str | None, varies: Sequence[str], reference: Path | None,
-         jobs: int, overrides: Sequence[str], registry: Registry, plugins: Sequence[str] = (),
-         command: str = "multilayer study", reference_sets: Sequence[str] = (),
-         probes: Sequence[str] | None = None, reuse: bool = False, scheduler: str | None = None) -> int:
-    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
-
-    ``reference_sets`` are overrides of the reference alone; with them and no
-    ``reference`` file, the reference is ``case_file`` with those overrides.
-    ``probes`` (``--probes``) are the η probes the errors are measured at (all
-    by default); ``reuse`` (``--reuse``) keeps finished runs of the same case.
+    ``runs`` holds every planned run by label, and the ``--reference`` run
+    under :data:`~multilayer.campaign.planning.REFERENCE` when there is one.
     """
-    if reference is None and reference_sets:
-        reference = case_file
-    out = Path(out)
-    try:
-        choices, axes, problems = grid_options(case_file, out, couplers, varies, jobs, overrides, registry)
-    except CaseError as exc:
-        print(f"{case_file}: invalid case", file=sys.stderr)
-        print(str(exc), file=sys.stderr)
-        return INVALID
-    if problems:
-        print("study: invalid command line", file=sys.stderr)
-        print(str(CaseError(problems)), file=sys.stderr)
-        return INVALID
-    planned = plan(case_file, choices, axes, overrides)
-    variants = [p.variant for p in planned]
-    if reference is not None:
-        variants.append(Variant(REFERENCE, Path(reference), (*overrides, *reference_sets)))
-    if invalid_runs("study", variants, registry):
-        return INVALID
-    out.mkdir(parents=True, exist_ok=True)
-    folders = {p.label: out / p.folder for p in planned} | ({REFERENCE: out / REFERENCE} if reference else {})
-    # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
-    order = variants[-1:] + variants[:-1] if reference is not None else variants
-    try:
-        runs = run_variants(order, folders, jobs, registry, plugins, scheduler, reuse)
-    except ExecutorError as exc:
-        print(f"study: {exc}", file=sys.stderr)
-        return INVALID
-    runs = {label: runs[label] for label in folders}
-    if probes is not None:
-        known = {p["name"] for r in runs.values() for p in r.probes if p["quantity"] == "eta"}
-        unknown = [name for name in probes if name not in known]
-        if unknown:
-            print(str(CaseError([Problem("--probes", name, "not an η probe of these runs",
-                                         did_you_mean(name, sorted(known)) or f"η probes: {', '.join(sorted(known))}")
-                                 for name in unknown])), file=sys.stderr)
-            return INVALID
     data = {
         "command": command,
         "case_file": str(case_file),
         "title": next((r.case.get("title", "") for r in runs.values() if r.case), ""),
         "overrides": list(overrides),
-        "couplers": [attrs.asdict(c) for c in choices],
+        "couplers": [attrs.asdict(c) for c in couplers],
         "vary": [{"key": k, "values": v} for k, v in axes],
         "targets": list(TARGETS),
         "probes": list(probes) if probes is not None else "every η probe",
-        **collect(planned, runs, choices, runs.get(REFERENCE), probes),
+        **collect(planned, runs, couplers, runs.get(REFERENCE), probes),
     }
     for row in data["runs"]:
         del row["coupler_index"]
-    (out / "study.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
-    (out / "study.md").write_text(markdown(data))
-    plot(data, out)
-    failed = [label for label, run in runs.items() if run.summary.get("status") != "ok"]
-    print(f"report: {out / 'study.md'}")
-    if failed:
-        print(f"study: {len(failed)} run(s) failed: {', '.join(failed)}", file=sys.stderr)
-        return FAILED
-    return OK
+    return data

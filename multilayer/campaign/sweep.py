@@ -2,16 +2,20 @@
 
 Plan → execute → collect:
 
-* :func:`plan` expands the case file's ``[sweep]`` table and every
-  ``--vary`` (:mod:`multilayer.case.grid`) into resolved, validated cases
+* :func:`plan` expands the case file's ``[sweep]`` table
+  (:func:`read_sweep_table`) and every ``--vary`` (:func:`sweep_axes`,
+  :mod:`multilayer.case.grid`) into resolved, validated cases
   (:class:`SweepRun`), each with its digest and folder ``runs/<digest[:12]>/``;
 * :func:`multilayer.campaign.executor.execute` runs those not finished yet
   (:func:`pending`: a folder whose ``summary.json`` says ``ok`` for the same
   ``case_hash`` is skipped) — on an embedded local Dask cluster, an
   existing one (``--scheduler``), or here (``--jobs 1``);
 * :func:`collect` measures every run from its results folder alone
-  (:func:`multilayer.campaign.measures.measure`) into ``sweep.csv``, ``sweep.md`` and
-  one figure per swept key.
+  (:func:`multilayer.campaign.measures.measure`), and :func:`write_report`
+  writes the rows into ``sweep.csv``, ``sweep.md`` and one figure per swept key.
+
+The command line (its options, messages and exit codes) is
+:mod:`multilayer.commands.sweep`.
 
 See ``docs/sweeps.md``.
 """
@@ -20,8 +24,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import sys
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -30,8 +32,8 @@ from typing import Any
 import attrs
 import numpy as np
 
-from multilayer.campaign.executor import ExecutorError, Job, execute, how, print_err
 from multilayer.campaign.measures import measure
+from multilayer.campaign.report import cell
 from multilayer.campaign.variants import sanitize
 from multilayer.case.casefile import load_case
 from multilayer.case.grid import (
@@ -42,7 +44,6 @@ from multilayer.case.grid import (
     sweep_table,
     vary_axis,
 )
-from multilayer.commands.main import FAILED, INVALID, OK
 from multilayer.plugin.problems import MISSING, CaseError, Problem
 from multilayer.plugin.registry import Registry
 from multilayer.results.folder import holds_finished_run
@@ -71,7 +72,7 @@ class SweepRun:
         return ", ".join(f"{k}={v}" for k, v in self.values) or self.digest[:DIGEST_CHARS]
 
 
-def read_table(case_file: Path) -> SweepTable | None:
+def read_sweep_table(case_file: Path) -> SweepTable | None:
     """The ``[sweep]`` table of ``case_file`` (None without one); CaseError with its key paths when invalid."""
     try:
         data = tomllib.loads(Path(case_file).read_text(encoding="utf-8"))
@@ -202,8 +203,6 @@ def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> None:
 
 def markdown(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], command: str, figures: Sequence[str]) -> str:
     """``sweep.md``: the command, one table row per run, the figures."""
-    from multilayer.campaign.report import cell
-
     columns = [c for c in _columns(rows) if c not in ("reason", "folder")]
     ok = sum(r["status"] == "ok" for r in rows)
     lines = ["# Sweep", "", "    " + command, "",
@@ -232,6 +231,7 @@ def plot(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], out: Path) -> l
     A numeric key is a numeric axis; any other (an inline table) one tick
     per value.  Runs equal in the other keys are joined by a line.
     """
+    # matplotlib is heavy (and results.figures loads it): imported only when the figures are drawn
     from matplotlib.figure import Figure
 
     from multilayer.results.figures import save_figure
@@ -283,68 +283,8 @@ def write_plan(runs: Sequence[SweepRun], keys: Sequence[str], out: Path, case_fi
     (out / "plan.json").write_text(json.dumps(without_nan(data), indent=2) + "\n")
 
 
-# -- the command ---------------------------------------------------------------------
-
-
-def _invalid(title: str, problems: Sequence[Problem]) -> int:
-    print(title, file=sys.stderr)
-    print(str(CaseError(list(problems))), file=sys.stderr)
-    return INVALID
-
-
-def default_jobs() -> int:
-    """Local workers without ``--jobs``: one per core."""
-    return os.cpu_count() or 1
-
-
-def main(case_file: Path, out: Path, varies: Sequence[str], jobs: int | None, overrides: Sequence[str],
-         registry: Registry, plugins: Sequence[str] = (), scheduler: str | None = None,
-         command: str = "multilayer sweep") -> int:
-    """``multilayer sweep``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input."""
-    out = Path(out)
-    jobs = default_jobs() if jobs is None else jobs
-    problems = []
-    if jobs < 1:
-        problems.append(Problem("--jobs", jobs, "expected an integer >= 1 (local workers)"))
-    if out.exists() and not out.is_dir():
-        problems.append(Problem("--out", str(out), "a file, not a folder"))
-    if problems:
-        return _invalid("sweep: invalid command line", problems)
-    try:
-        axes = sweep_axes(read_table(case_file), varies)
-    except CaseError as exc:
-        return _invalid(f"{case_file}: invalid sweep", exc.problems)
-    problems = key_problems(case_file, axes, overrides, registry)
-    if problems:
-        return _invalid(f"{case_file}: invalid sweep (each swept key applied alone to the case)", problems)
-    runs, invalid = plan(case_file, axes, overrides, registry)
-    if invalid:
-        lines = [f"{label}: {p}" for label, found in invalid.items() for p in found]
-        print(f"sweep: {len(invalid)} of {len(invalid) + len(runs)} runs invalid", *lines, sep="\n", file=sys.stderr)
-        return INVALID
-    keys = list(dict.fromkeys(k for r in runs for k, _ in r.values))
-    out.mkdir(parents=True, exist_ok=True)
-    write_plan(runs, keys, out, case_file, overrides, command)
-    todo = pending(runs, out)
-    where = (f"the Dask scheduler {scheduler}" if scheduler else
-             {"serial": "this process", "dask": f"a local Dask cluster of {min(jobs, len(todo))} worker(s)",
-              "processes": f"{min(jobs, len(todo))} local processes (Dask is not installed)"}[how(jobs)])
-    print_err(f"sweep: {len(runs)} runs, {len(runs) - len(todo)} already done"
-              + (f", {len(todo)} to run on {where}" if todo else ", nothing to run"))
-    jobs_ = [Job(r.label, Path(case_file), r.overrides, out / r.folder) for r in todo]
-    try:
-        execute(jobs_, jobs, registry, plugins, log=print_err, scheduler=scheduler)
-    except ExecutorError as exc:
-        print(f"sweep: {exc}", file=sys.stderr)
-        return INVALID
-    rows = collect(runs, out, registry)
+def write_report(out: Path, rows: Sequence[Mapping[str, Any]], keys: Sequence[str], command: str) -> None:
+    """``sweep.csv``, one ``sweep_<key>.png`` per swept key and ``sweep.md`` of the :func:`collect` rows in ``out``."""
     write_csv(rows, out / "sweep.csv")
     figures = plot(rows, keys, out)
     (out / "sweep.md").write_text(markdown(rows, keys, command, figures))
-    failed = [r for r in rows if r["status"] != "ok"]
-    print(f"report: {out / 'sweep.md'}")
-    if failed:
-        print(f"sweep: {len(failed)} run(s) not ok: " + "; ".join(f"{r['digest']} ({r['status']})" for r in failed),
-              file=sys.stderr)
-        return FAILED
-    return OK

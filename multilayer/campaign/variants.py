@@ -20,6 +20,7 @@ from multilayer.case.casefile import load_case
 from multilayer.case.keys import key_steps, parse_value, parse_vary
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
+from multilayer.run.loop import run_case
 
 #: snapshots per run when a case writes none (the space–time plot needs them)
 SNAPSHOTS = 100
@@ -135,8 +136,6 @@ def run_variant(case: Any, folder: Path, registry: Registry) -> tuple[str, str]:
     A run that raises (a bug, not a failed run) is printed with its
     traceback and returned as failed, so the other variants still run.
     """
-    from multilayer.run.loop import run_case
-
     try:
         result = run_case(case, folder, registry)
     except Exception as exc:  # keep the other variants; the traceback says where
