@@ -1,0 +1,1 @@
+"""A results folder: writing it, reading it back, and the figures of one run."""
