@@ -58,6 +58,16 @@ def test_the_package_exports_the_api_and_its_version():
         assert getattr(ml, name) is (getattr(api, name) if name != "__version__" else __version__)
 
 
+def test_multilayer_run_is_the_function_and_the_subpackage_is_still_importable():
+    """The API's run shadows the subpackage multilayer.run as an attribute of the package; from-imports
+    (what the code base uses) still reach the subpackage, ``import multilayer.run.loop as x`` does not."""
+    from multilayer.run import loop
+    from multilayer.run.loop import run_case as imported
+
+    assert ml.run is api.run and callable(ml.run)
+    assert loop.run_case is imported and loop.__name__ == "multilayer.run.loop"
+
+
 def _imports(path: Path) -> list[tuple[str, list[str]]]:
     """(module, names) of every import in ``path``, relative ones resolved, inside functions too."""
     package = list(path.relative_to(ROOT).parent.parts)
