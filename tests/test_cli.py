@@ -6,8 +6,10 @@ from pathlib import Path
 
 import pytest
 
-import multilayer.run.loop
 from multilayer.commands.main import main
+
+# multilayer.run is the API's function (multilayer.api.run): the subpackage is reached by a from-import
+from multilayer.run import loop
 
 WALL = textwrap.dedent(
     """\
@@ -145,7 +147,7 @@ def test_run_of_an_invalid_case_writes_nothing(tmp_path, capsys):
 
 
 def test_failed_run_exits_1(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(multilayer.run.loop, "run_case",
+    monkeypatch.setattr(loop, "run_case",
                         lambda case, out, registry, **kw: types.SimpleNamespace(status="failed", reason="wall collapse",
                                                                                 steps=0, t=0.0, peaks={},
                                                                                 max_relative_residual=0.0))
@@ -157,7 +159,7 @@ def test_crashed_run_exits_1(tmp_path, monkeypatch, capsys):
     def crash(case, out, registry, **kw):
         raise ZeroDivisionError("boom")
 
-    monkeypatch.setattr(multilayer.run.loop, "run_case", crash)
+    monkeypatch.setattr(loop, "run_case", crash)
     assert main(["run", str(write(tmp_path, SHELL)), "--out", str(tmp_path / "o")]) == 1
     assert "ZeroDivisionError: boom" in capsys.readouterr().err
 

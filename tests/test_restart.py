@@ -91,14 +91,15 @@ def test_sigint_stops_cleanly_with_a_checkpoint_and_resume_finishes_the_run(tmp_
 
 
 def test_sigterm_from_the_cli_says_where_the_results_are(tmp_path, monkeypatch, capsys):
-    import multilayer.run.progress
+    # multilayer.run is the API's function (multilayer.api.run): the subpackage is reached by a from-import
+    from multilayer.run import progress
 
-    class Killer(multilayer.run.progress.ProgressBar):
+    class Killer(progress.ProgressBar):
         def __call__(self, tally, row):
             if tally.steps == 3:
                 os.kill(os.getpid(), signal.SIGTERM)
 
-    monkeypatch.setattr(multilayer.run.progress, "ProgressBar", Killer)
+    monkeypatch.setattr(progress, "ProgressBar", Killer)
     out = tmp_path / "term"
     a = argv(out, "time.end=0.001")
     a.remove("--quiet")

@@ -37,66 +37,26 @@ from multilayer.coupling.contract import Coupler, SchemeFailure
 from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.folder import ResultsFolder
-from multilayer.run import checkpoint, ledger
+from multilayer.run import checkpoint
+from multilayer.run.held import HeldResults
+from multilayer.run.stepping import (
+    EnergyBound,
+    RunFailed,
+    Step,
+    Tally,
+    check_state,
+    iterate_steps,
+    setting_up,
+)
 from multilayer.scene.setup import Setup
 from multilayer.scene.state import State
 from multilayer.version import __version__
 
-
-class RunFailed(Exception):
-    """The run cannot go on; the message says where and when."""
-
-
-def check_state(setup: Setup, state: State, row: dict[str, float]) -> None:
-    """Stop on a non-finite value, a wall collapsing onto the axis (R + η ≤ 0) or one blown outward.
-
-    Outward means |η| on the lumen beyond ``[solver] max_displacement`` × R.
-    """
-    t = state.t
-    bad = [k for k, v in row.items() if not math.isfinite(v)]
-    if bad:
-        raise RunFailed(f"non-finite value at t = {t:.6g} s in {', '.join(sorted(bad)[:5])}")
-    if state.wall is not None:
-        for name, vec in (("wall displacement", state.wall.d), ("wall velocity", state.wall.V)):
-            if not np.all(np.isfinite(vec)):
-                raise RunFailed(f"non-finite {name} at t = {t:.6g} s")
-        gap = setup.case.geometry.radius + setup.eta(state, 0)
-        if np.min(gap) <= 0.0:
-            i = int(np.argmin(gap))
-            z = setup.wall.lines[0].z[i]
-            raise RunFailed(f"wall collapse at t = {t:.6g} s, z = {z:.6g} cm: R + η = {gap[i]:.6g} cm ≤ 0")
-        limit = setup.case.limits.max_displacement * setup.case.geometry.radius
-        eta = gap - setup.case.geometry.radius
-        i = int(np.argmax(np.abs(eta)))
-        if abs(eta[i]) > limit:
-            how = "blow-out (outward)" if eta[i] > 0 else "collapse (inward)"
-            raise RunFailed(f"wall {how} at t = {t:.6g} s, z = {setup.wall.lines[0].z[i]:.6g} cm: "
-                            f"|η| = {abs(eta[i]):.6g} cm > {setup.case.limits.max_displacement:g} R "
-                            f"([solver] max_displacement)")
+__all__ = ["EnergyBound", "Interrupted", "RunFailed", "RunResult", "Tally", "check_state", "interruptible",
+           "resume_run", "run_case", "run_held"]
 
 
-class EnergyBound:
-    """Energy may never exceed the initial energy plus the work put in (a stable scheme's bound).
-
-    Checked after every step with the margin ``[solver] energy_margin``: beyond
-    it the scheme is unstable and the run stops, naming time and amounts.
-    """
-
-    def __init__(self, initial: float, margin: float):
-        self.initial, self.margin, self.work, self.scale = initial, margin, 0.0, abs(initial)
-
-    def check(self, t: float, terms: dict[str, float]) -> None:
-        self.work += sum(v for k, v in terms.items() if k.startswith("work."))
-        bound = self.initial + self.work
-        self.scale = max(self.scale, abs(self.initial) + abs(self.work), abs(terms["energy.total"]))
-        excess = terms["energy.total"] - bound
-        if excess > self.margin * self.scale:
-            raise RunFailed(f"energy grew beyond the work put in at t = {t:.6g} s: E = {terms['energy.total']:.6g} "
-                            f"> E⁰ + work = {bound:.6g} (by {excess / self.scale:.3g} of the energy scale; "
-                            f"[solver] energy_margin = {self.margin:g}): the scheme is unstable here")
-
-
-def _snapshot(setup: Setup, state: State, results: ResultsFolder) -> None:
+def _snapshot(setup: Setup, state: State, results: ResultsFolder | HeldResults) -> None:
     if setup.wall is not None:
         pts, cells, data = setup.wall_snapshot(state)
         results.snapshot("wall", pts, cells, data, state.t, state.n)
@@ -114,23 +74,6 @@ class RunResult:
     max_relative_residual: float = 0.0
     t: float = 0.0
     peaks: dict = attrs.field(factory=dict)  #: max |value| of every η probe
-
-
-@attrs.define
-class Tally:
-    """What the loop carries from step to step besides the state: the ledger and the counts.
-
-    It is part of a checkpoint, so a resumed run goes on with the same numbers.
-    """
-
-    previous: float  #: the stored energy before the next step
-    bound: EnergyBound
-    steps: int = 0
-    t: float = 0.0
-    max_rel: float = 0.0
-    iterations: list[float] = attrs.field(factory=list)
-    peaks: dict[str, float] = attrs.field(factory=dict)
-    wall_time_s: float = 0.0  #: wall time of earlier sessions of a resumed run
 
 
 class Interrupted(Exception):
@@ -180,6 +123,20 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, c
         return _run(case, results, registry, None, checkpoint_every, progress)
 
 
+def run_held(case: Case, registry: Registry | None = None, *,
+             progress: Callable[[Tally, dict], None] | None = None) -> tuple[RunResult, HeldResults]:
+    """Run ``case`` as :func:`run_case` does, its rows and summary held in memory instead of a folder.
+
+    No file is written (no snapshots, no checkpoints).  Returns the
+    :class:`RunResult` and the :class:`~multilayer.run.held.HeldResults`
+    (``tables["series.csv"]``, ``tables["eta_lumen.csv"]``, ``summary``).
+    """
+    registry = registry or Registry.load()
+    held = HeldResults()
+    with blas_threads(case.threads):
+        return _run(case, held, registry, None, 0, progress), held
+
+
 def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
                checkpoint_every: int | None = None,
                progress: Callable[[Tally, dict], None] | None = None) -> RunResult:
@@ -198,7 +155,7 @@ def resume_run(out: str | Path, until: float | None = None, registry: Registry |
         return _run(saved.case, results, registry, saved, every, progress)
 
 
-def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoint.Checkpoint | None,
+def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, saved: checkpoint.Checkpoint | None,
          checkpoint_every: int, progress) -> RunResult:
     wall_t0 = time.perf_counter()
     status, reason, crash = "ok", "", ""
@@ -208,46 +165,25 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
     resumed_from = saved.tally.steps if saved is not None else None
     try:
         with interruptible() as interrupted:
-            try:
+            with setting_up():
                 setup, coupler = prepare(case, registry)
                 state = saved.state if saved is not None else coupler.initial_state(setup)
-            except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
-                raise RunFailed(f"setting up the scene failed: {exc}") from exc
             if tally is None:
-                energy = sum(coupler.energy(setup, state).values())
-                tally = Tally(energy, EnergyBound(energy, case.limits.energy_margin))
+                tally = Tally.start(setup, coupler, state)
             probes = setup.probe_rows(case.output.probes)
-            eta_probes = [p.name for p in case.output.probes if p.quantity == "eta"]
-            every = case.output.every
             writers = Writers(results, setup, saved, ["step", "t", *coupler.energy(setup, state),
                                                       "energy.total", "energy.residual", "energy.relative_residual",
                                                       *probes])
             t_out = time.perf_counter()
-            if every and saved is None:
+            if writers.every and saved is None:
                 _snapshot(setup, state, results)
             setup.timings["output"] += time.perf_counter() - t_out
-            for state, report in coupler.evolve(setup, state):
-                terms = ledger.close(report.stored, tally.previous, report.work, report.dissipation)
-                tally.previous = terms["energy.total"]
-                check_state(setup, state, {**terms, **report.diagnostics})
-                tally.iterations.append(report.diagnostics.get("iterations", math.nan))
-                t_out = time.perf_counter()
-                row = {"step": state.n, "t": state.t, **terms, **report.diagnostics,
-                       **setup.probe_values(probes, state)}
-                writers.write(row, state)
-                tally.steps, tally.t = state.n, state.t
-                tally.max_rel = max(tally.max_rel, terms["energy.relative_residual"])
-                for name in eta_probes:
-                    tally.peaks[name] = max(tally.peaks.get(name, 0.0), abs(row[name]))
-                if every and state.n % every == 0:
-                    _snapshot(setup, state, results)
-                setup.timings["output"] += time.perf_counter() - t_out
-                tally.bound.check(state.t, terms)  # after the row is written: the row that breaks it is kept
+            for step in iterate_steps(setup, coupler, state, tally, probes, writers):
                 if progress is not None:
-                    progress(tally, row)
-                if checkpoint_every and (state.n % checkpoint_every == 0 or interrupted()):
-                    checkpoint.save(results.path, case, registry, state, tally, results.snapshots, checkpoint_every,
-                                    time.perf_counter() - wall_t0)
+                    progress(tally, step.row)
+                if checkpoint_every and (step.n % checkpoint_every == 0 or interrupted()):
+                    checkpoint.save(results.path, case, registry, step.state, tally, results.snapshots,
+                                    checkpoint_every, time.perf_counter() - wall_t0)
                     for stats in _all_stats(setup):  # a resumed run has no factors: neither may this one
                         stats.refactorize = True
                 if interrupted():
@@ -292,16 +228,17 @@ def _run(case: Case, results: ResultsFolder, registry: Registry, saved: checkpoi
 
 
 class Writers:
-    """The per-step files: ``series.csv`` and, with a wall, ``eta_lumen.csv`` (η at the lumen's vertices).
+    """The per-step files: ``series.csv``, with a wall ``eta_lumen.csv`` (η at the lumen's vertices), snapshots.
 
     ``series.csv`` gets its header before the first step, from the columns
     known then (the stored energy's terms, the probes); the first row
-    completes it with the step's work and dissipation terms.
+    completes it with the step's work and dissipation terms.  The output of
+    :func:`~multilayer.run.stepping.iterate_steps`: :meth:`row`, then :meth:`fields`.
     """
 
-    def __init__(self, results: ResultsFolder, setup: Setup, saved: checkpoint.Checkpoint | None,
+    def __init__(self, results: ResultsFolder | HeldResults, setup: Setup, saved: checkpoint.Checkpoint | None,
                  columns: list[str]):
-        self.results, self.setup = results, setup
+        self.results, self.setup, self.every = results, setup, setup.case.output.every
         self.keep = saved.tally.steps if saved is not None else None
         if saved is not None:
             results.keep_until(self.keep, saved.snapshots)
@@ -315,7 +252,9 @@ class Writers:
             self.eta = results.series(["step", "t", *(f"z={v!r}" for v in map(float, z))], "eta_lumen.csv",
                                       self.keep)
 
-    def write(self, row: dict, state: State) -> None:
+    def row(self, step: Step) -> None:
+        """The step's rows of ``series.csv`` and ``eta_lumen.csv``."""
+        row, state = step.row, step.state
         if self.series is None or (self._provisional and list(row) != self.series.columns):
             self.series = self.results.series(list(row), keep_until=self.keep)
         self._provisional = False
@@ -323,6 +262,11 @@ class Writers:
         if self.eta is not None:
             eta = self.setup.eta(state, 0)[self._vertices]
             self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
+
+    def fields(self, step: Step) -> None:
+        """The snapshots, every ``[output] every`` steps."""
+        if self.every and step.n % self.every == 0:
+            _snapshot(self.setup, step.state, self.results)
 
 
 def _iterations(per_step: list[float]) -> dict[str, dict[str, float]]:

@@ -1,0 +1,113 @@
+"""The examples of docs/examples/ and the code of docs/python-api.md run, and give what they say they give.
+
+Each example ends with one scalar; it is checked against the value measured
+when the example was written.  The tolerances are far above round-off (a
+run is reproducible to ~1e-12 relative; the Krylov tolerance is 1e-12) and
+far below what any change of the discretization moves the scalar by: each
+test's comment gives the change measured with a second setting, a mesh
+refined from 30 × 4 to 60 × 8 cells and Δt halved from 1e-4 to 5e-5 s.
+"""
+
+from __future__ import annotations
+
+import re
+import runpy
+import shutil
+from pathlib import Path
+
+import matplotlib
+import pytest
+
+ROOT = Path(__file__).parents[1]
+EXAMPLES = ROOT / "docs" / "examples"
+PAGE = ROOT / "docs" / "python-api.md"
+
+
+@pytest.fixture
+def run_example(tmp_path, monkeypatch):
+    """Run ``docs/examples/<name>`` as a script in an empty folder; its globals."""
+    monkeypatch.chdir(tmp_path)
+    matplotlib.use("Agg")
+
+    def run(name: str) -> dict:
+        return runpy.run_path(str(EXAMPLES / name), run_name="__main__")
+
+    return run
+
+
+TESTED = {"ex01_energy_ledger.py", "ex02_wave_speed.py", "ex03_stop_at_threshold.py", "ex04_koiter_vs_wave.py",
+          "ex05_results_folder.py"}
+
+
+def test_every_example_is_tested():
+    assert {p.name for p in EXAMPLES.glob("ex*.py")} == TESTED
+
+
+def test_ex01_the_energy_ledger_closes_to_round_off(run_example):
+    g = run_example("ex01_energy_ledger.py")
+    # measured 4.1e-13 (30 x 4), 3.4e-13 (60 x 8), 4.8e-13 (Δt/2): round-off everywhere; a missing or wrong
+    # energy term leaves a residual of the order of the term (the numerical dissipation is ~1e-2 of the work)
+    assert g["max_relative_residual"] < 1e-9
+    assert g["res"].ok and g["res"].steps == 40
+    assert abs(g["budget"]) < 1e-9 * g["work"].sum()  # E(T) = W - D over the whole run
+
+
+def test_ex02_the_pulse_speed(run_example):
+    g = run_example("ex02_wave_speed.py")
+    # 533.43 cm/s; the 60 x 8 mesh gives 530.46 (-0.56 %), Δt/2 547.05 (+2.6 %): 1e-4 catches either
+    assert g["speed"] == pytest.approx(533.4347, rel=1e-4)
+
+
+def test_ex03_stepping_stops_at_the_threshold(run_example):
+    g = run_example("ex03_stop_at_threshold.py")
+    # 4.86296 ms; the 60 x 8 mesh gives 4.80972 (-1.1 %), Δt/2 4.34377 (-10.7 %)
+    assert g["crossing_ms"] == pytest.approx(4.862958, rel=1e-4)
+    assert g["step"].n == 49  # the loop stopped there: no later step was computed
+
+
+def test_ex04_koiter_shell_against_wave_membrane(run_example):
+    g = run_example("ex04_koiter_vs_wave.py")
+    # 0.80332; the 60 x 8 mesh gives 0.81608 (+1.6 %), Δt/2 0.67178 (-16 %)
+    assert g["ratio"] == pytest.approx(0.803320, rel=1e-4)
+
+
+def test_ex05_a_results_folder_read_back_and_plotted(run_example, tmp_path):
+    g = run_example("ex05_results_folder.py")
+    # 234.488 µm; the 60 x 8 mesh gives 234.173 (-0.13 %), Δt/2 333.163 (+42 %)
+    assert g["peak_um"] == pytest.approx(234.4877, rel=1e-4)
+    out = tmp_path / "results" / "ex05-pulse-koiter-thick"
+    assert {"summary.json", "series.csv", "eta_lumen.csv", "eta.png"} <= {p.name for p in out.iterdir()}
+    assert g["res"].ok and g["res"].folder == Path("results/ex05-pulse-koiter-thick")
+
+
+def python_blocks(text: str) -> list[tuple[int, str]]:
+    """(line of its first line of code, code) of every ```python block of a Markdown page."""
+    return [(text.count("\n", 0, m.start()) + 2, m.group(1))
+            for m in re.finditer(r"^```python\n(.*?)^```", text, re.DOTALL | re.MULTILINE)]
+
+
+def test_python_blocks_are_found():
+    assert python_blocks("x\n```python\na = 1\n```\n```text\nb\n```\n") == [(3, "a = 1\n")]
+
+
+def test_the_python_api_page_runs(tmp_path, monkeypatch):
+    """Every block of docs/python-api.md, in order in one session, from a folder with the bundled cases."""
+    try:
+        (tmp_path / "cases").symlink_to(ROOT / "cases", target_is_directory=True)
+    except OSError:  # no symlinks here
+        shutil.copytree(ROOT / "cases", tmp_path / "cases")
+    monkeypatch.chdir(tmp_path)
+    matplotlib.use("Agg")
+    blocks = python_blocks(PAGE.read_text())
+    assert len(blocks) >= 10
+    session: dict = {"__name__": "__main__"}
+    for line, code in blocks:
+        # blank lines first: a traceback names the page's own line
+        exec(compile("\n" * (line - 1) + code, str(PAGE), "exec"), session)  # noqa: S102
+    # what the page says its blocks show
+    assert session["res"].ok and session["saved"].ok and session["back"].ok
+    assert session["failed"].status == session["crashed"].status == "failed"
+    assert session["same"].digest == session["accurate"].digest
+    assert all(r.ok for r in session["runs"].values())
+    assert (tmp_path / "results" / "quick" / "eta.png").is_file()
+    assert (tmp_path / "results" / "koiter-vs-wave.png").is_file()
