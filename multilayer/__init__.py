@@ -13,17 +13,6 @@ The Python API (:mod:`multilayer.api`, ``docs/python-api.md``)::
     print(res.status, res.peaks, res.max_relative_residual)
 """
 
-from multilayer.api import (
-    Case,
-    CaseError,
-    Results,
-    RunFailed,
-    Step,
-    load_case,
-    read_results,
-    run,
-    steps,
-)
 from multilayer.version import __version__
 
 __all__ = [
@@ -38,3 +27,20 @@ __all__ = [
     "run",
     "steps",
 ]
+
+
+def __getattr__(name: str):
+    """The API's names, imported when first asked for: ``import multilayer`` itself loads no numerics.
+
+    (The API brings numpy, scipy and scikit-fem with it; every ``multilayer`` command and every worker of
+    a sweep imports this package, most without wanting the API.)
+    """
+    if name in __all__:
+        from multilayer import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'multilayer' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

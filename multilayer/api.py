@@ -36,9 +36,9 @@ from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import lumen_eta, read_run
-from multilayer.run.held import HeldResults
-from multilayer.run.loop import run_case, run_held
-from multilayer.run.stepping import RunFailed, Step, Tally, iterate_steps, setting_up
+from multilayer.runner.held import HeldResults
+from multilayer.runner.loop import run_case, run_held
+from multilayer.runner.stepping import RunFailed, Step, Tally, iterate_steps, setting_up
 
 __all__ = ["Case", "CaseError", "Results", "RunFailed", "Step", "load_case", "read_results", "run", "steps"]
 
@@ -330,7 +330,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     bar = None
     callback: Callable[[Tally, dict], None] | None = None
     if progress is True:
-        from multilayer.run.progress import ProgressBar
+        from multilayer.runner.progress import ProgressBar
 
         bar = ProgressBar(case.time.steps, case.time.end, enabled=True)
         callback = bar
@@ -355,7 +355,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
 def steps(case: Case, *, registry: Registry | None = None) -> Generator[Step, None, None]:
     """The steps of a run of ``case``, one at a time, without a results folder.
 
-    Each :class:`~multilayer.run.stepping.Step` has ``n``, ``t``, ``ledger``
+    Each :class:`~multilayer.runner.stepping.Step` has ``n``, ``t``, ``ledger``
     (every term of the step's energy ledger, ``energy.total``,
     ``energy.residual``, ``energy.relative_residual``), ``probes`` (by name),
     ``diagnostics``, ``row`` (the step's row of ``series.csv``) and

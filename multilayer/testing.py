@@ -32,7 +32,7 @@ The checks (:data:`CHECKS`):
 ``coupled-run``
     a short pressure pulse through a coarse channel (:data:`SCENE`, the
     layer on the lumen, or on a ``wave-membrane`` when it is thick) runs
-    through :func:`multilayer.run.loop.run_case` and its energy ledger closes:
+    through :func:`multilayer.runner.loop.run_case` and its energy ledger closes:
     ``summary.json`` energy.max_relative_residual ≤ :data:`LEDGER_TOL`.
 
 The parameters are those given, else the record's ``example``, else values
@@ -56,7 +56,7 @@ from multilayer.geometry.spaces import make_line_space
 from multilayer.plugin.problems import CaseError, check_params, check_value, describe
 from multilayer.plugin.records import LayerPlugin, Param
 from multilayer.plugin.registry import Registry
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 from multilayer.wall.checks import (
     abstract_problem,
     essential_problems,

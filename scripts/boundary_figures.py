@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 
 from multilayer.case.casefile import load_case
 from multilayer.results.reading import read_run
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 ROOT = Path(__file__).parents[1]
 FIGURES = ROOT / "docs" / "figures"

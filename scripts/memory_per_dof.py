@@ -40,7 +40,7 @@ def resident_bytes() -> float:
 def child(case: str, nz: int, nr: int, order: int, coupler: str, steps: int) -> None:
     """One run in this process; prints its JSON line."""
     from multilayer.case.casefile import load_case
-    from multilayer.run.loop import run_case
+    from multilayer.runner.loop import run_case
 
     loaded = load_case(case, [f"mesh.nz={nz}", f"mesh.nr={nr}", f"mesh.order={order}", f"coupler={coupler}",
                               "time.dt=1e-4", f"time.end={steps * 1e-4!r}", "output.every=0"])

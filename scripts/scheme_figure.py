@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 from multilayer.case.casefile import load_case
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import lumen_eta, read_series
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "pulse-koiter-thick.toml"

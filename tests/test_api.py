@@ -16,8 +16,8 @@ import multilayer as ml
 from multilayer import api
 from multilayer.case.keys import parse_value
 from multilayer.commands.main import main
-from multilayer.run import ledger
-from multilayer.run.loop import run_case
+from multilayer.runner import ledger
+from multilayer.runner.loop import run_case
 
 ROOT = Path(__file__).parents[1]
 CASES = ROOT / "cases"
@@ -58,14 +58,11 @@ def test_the_package_exports_the_api_and_its_version():
         assert getattr(ml, name) is (getattr(api, name) if name != "__version__" else __version__)
 
 
-def test_multilayer_run_is_the_function_and_the_subpackage_is_still_importable():
-    """The API's run shadows the subpackage multilayer.run as an attribute of the package; from-imports
-    (what the code base uses) still reach the subpackage, ``import multilayer.run.loop as x`` does not."""
-    from multilayer.run import loop
-    from multilayer.run.loop import run_case as imported
+def test_multilayer_run_is_the_function_and_the_time_loop_is_its_own_subpackage():
+    import multilayer.runner.loop as loop
 
     assert ml.run is api.run and callable(ml.run)
-    assert loop.run_case is imported and loop.__name__ == "multilayer.run.loop"
+    assert loop.__name__ == "multilayer.runner.loop" and callable(loop.run_case)
 
 
 def _imports(path: Path) -> list[tuple[str, list[str]]]:

@@ -23,7 +23,7 @@ from multilayer.plugin.problems import CaseError
 from multilayer.plugin.records import BoundaryPlugin, Param
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import read_run
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 
 class Resistance(BoundaryCondition):

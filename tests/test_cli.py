@@ -7,9 +7,7 @@ from pathlib import Path
 import pytest
 
 from multilayer.commands.main import main
-
-# multilayer.run is the API's function (multilayer.api.run): the subpackage is reached by a from-import
-from multilayer.run import loop
+from multilayer.runner import loop
 
 WALL = textwrap.dedent(
     """\

@@ -22,7 +22,7 @@ from multilayer.plugin.problems import CaseError
 from multilayer.plugin.records import GeometryPlugin, Param
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import read_run
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 
 class Deep(Geometry):

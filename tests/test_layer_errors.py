@@ -11,7 +11,7 @@ from multilayer.case.casefile import load_case
 from multilayer.case.model import LayerSpec
 from multilayer.commands.main import main
 from multilayer.plugin.registry import Registry
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 from multilayer.scene.setup import build_layer
 from multilayer.wall.checks import LayerError
 from multilayer.wall.stack import Stack, WallSpace

@@ -10,7 +10,7 @@ from runs import CASES
 
 from multilayer.case.casefile import load_case
 from multilayer.results.reading import read_run
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 
 def run(tmp_path, case, *sets):

@@ -13,7 +13,7 @@ import pytest
 from runs import CASES, run_cli
 
 from multilayer.commands.main import main
-from multilayer.run.loop import EnergyBound, RunFailed
+from multilayer.runner.loop import EnergyBound, RunFailed
 
 TINY = ("geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
         'output.probes=[{ name = "eta_z1", quantity = "eta", z = 1.0 }]')

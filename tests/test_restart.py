@@ -17,7 +17,7 @@ from multilayer.case.casefile import load_case
 from multilayer.commands.common import INTERRUPTED
 from multilayer.commands.main import main
 from multilayer.results.folder import ResultsFolder, _append_to_collection, _pvd
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 #: with solver.reuse = "krylov" (the default) every checkpoint makes the next solve factorize afresh, as a
 #: resumed run's first solve must: a checkpointed run and its resume are bit-identical
@@ -91,8 +91,7 @@ def test_sigint_stops_cleanly_with_a_checkpoint_and_resume_finishes_the_run(tmp_
 
 
 def test_sigterm_from_the_cli_says_where_the_results_are(tmp_path, monkeypatch, capsys):
-    # multilayer.run is the API's function (multilayer.api.run): the subpackage is reached by a from-import
-    from multilayer.run import progress
+    from multilayer.runner import progress
 
     class Killer(progress.ProgressBar):
         def __call__(self, tally, row):

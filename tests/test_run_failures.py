@@ -15,7 +15,7 @@ from multilayer.functions.formula import Formula
 from multilayer.functions.loads import FormulaPressure
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import LayerPlugin, Param
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 from multilayer.wall.layer import LayerMatrices, ThinLayer
 
 CASES = Path(__file__).parents[1] / "cases"

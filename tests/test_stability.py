@@ -15,8 +15,8 @@ from multilayer.commands.main import main
 from multilayer.coupling.build import prepare
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import read_run, read_series
-from multilayer.run import ledger
-from multilayer.run.loop import run_case
+from multilayer.runner import ledger
+from multilayer.runner.loop import run_case
 
 CASES = Path(__file__).parents[1] / "cases"
 PULSE = CASES / "pulse-koiter.toml"
@@ -29,7 +29,7 @@ TINY = ["geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
 
 
 def ledger_series(e0, stored, work, dissipation, residual=None):
-    """series.csv columns of a run whose ledger the runner closed step by step (multilayer.run.ledger.close)."""
+    """series.csv columns of a run whose ledger the runner closed step by step (multilayer.runner.ledger.close)."""
     rows, previous = [], e0
     for n, (e, w, d) in enumerate(zip(stored, work, dissipation)):
         row = ledger.close({"kinetic.fluid": e}, previous, {"work.inlet": w[0], "work.outlet": w[1]},

@@ -6,7 +6,7 @@ import pytest
 from multilayer.coupling.structure import StructureStep
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.numerics.timescheme import SCHEMES
-from multilayer.run import ledger
+from multilayer.runner import ledger
 from multilayer.scene.state import State, WallState
 from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.koiter_shell import koiter_shell

@@ -15,7 +15,7 @@ from multilayer.numerics.signals import backward_euler_eigenvalue, prony_roots
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import LayerPlugin, Param
 from multilayer.plugin.registry import Registry
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 from multilayer.testing import LayerConformance
 from multilayer.wall.layer import LayerMatrices, ThinLayer
 

@@ -3,7 +3,7 @@
 Variants come from :mod:`multilayer.campaign.variants`, measurements from
 :mod:`multilayer.campaign.measures`, plots and tables from :mod:`multilayer.campaign.report`.
 Every variant runs into ``OUT/<label>/``, an ordinary results folder (see
-:mod:`multilayer.run.loop`), and the comparison is then made from those folders
+:mod:`multilayer.runner.loop`), and the comparison is then made from those folders
 alone — ``summary.json``, ``series.csv`` and the wall snapshots — so every
 number of ``report.md`` / ``report.json`` can be recomputed from the runs'
 own files.  See ``docs/compare.md``; the command line is

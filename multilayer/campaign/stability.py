@@ -110,7 +110,7 @@ def initial_energy(series: Mapping[str, np.ndarray]) -> float | None:
     """E₀, the energy before the first step, from the first row of a ledger.
 
     The runner closes each step as Eⁿ⁺¹ − Eⁿ − W + D = residual
-    (:func:`multilayer.run.ledger.close`), so E₀ = E₁ − W₁ + D₁ − residual₁
+    (:func:`multilayer.runner.ledger.close`), so E₀ = E₁ − W₁ + D₁ − residual₁
     with W₁ the sum of the ``work.*`` columns and D₁ of the
     ``dissipation.*`` columns of the first row, and residual₁ its
     ``energy.residual`` (0 when the column is missing).  This is the very

@@ -20,7 +20,7 @@ from multilayer.case.casefile import load_case
 from multilayer.case.keys import key_steps, parse_value, parse_vary
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
-from multilayer.run.loop import run_case
+from multilayer.runner.loop import run_case
 
 #: snapshots per run when a case writes none (the space–time plot needs them)
 SNAPSHOTS = 100

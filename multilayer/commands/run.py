@@ -25,8 +25,8 @@ from multilayer.commands.plot import plot_folder
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 from multilayer.results.folder import ResultsError
-from multilayer.run import checkpoint, loop, progress
-from multilayer.run.checkpoint import CheckpointError
+from multilayer.runner import checkpoint, loop, progress
+from multilayer.runner.checkpoint import CheckpointError
 
 
 @attrs.frozen

@@ -37,9 +37,9 @@ from multilayer.coupling.contract import Coupler, SchemeFailure
 from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.folder import ResultsFolder
-from multilayer.run import checkpoint
-from multilayer.run.held import HeldResults
-from multilayer.run.stepping import (
+from multilayer.runner import checkpoint
+from multilayer.runner.held import HeldResults
+from multilayer.runner.stepping import (
     EnergyBound,
     RunFailed,
     Step,
@@ -128,7 +128,7 @@ def run_held(case: Case, registry: Registry | None = None, *,
     """Run ``case`` as :func:`run_case` does, its rows and summary held in memory instead of a folder.
 
     No file is written (no snapshots, no checkpoints).  Returns the
-    :class:`RunResult` and the :class:`~multilayer.run.held.HeldResults`
+    :class:`RunResult` and the :class:`~multilayer.runner.held.HeldResults`
     (``tables["series.csv"]``, ``tables["eta_lumen.csv"]``, ``summary``).
     """
     registry = registry or Registry.load()
@@ -233,7 +233,7 @@ class Writers:
     ``series.csv`` gets its header before the first step, from the columns
     known then (the stored energy's terms, the probes); the first row
     completes it with the step's work and dissipation terms.  The output of
-    :func:`~multilayer.run.stepping.iterate_steps`: :meth:`row`, then :meth:`fields`.
+    :func:`~multilayer.runner.stepping.iterate_steps`: :meth:`row`, then :meth:`fields`.
     """
 
     def __init__(self, results: ResultsFolder | HeldResults, setup: Setup, saved: checkpoint.Checkpoint | None,

@@ -14,7 +14,7 @@ from tqdm import tqdm
 
 
 class ProgressBar:
-    """Called after every step with the run's tally and the step's row (see :func:`multilayer.run.loop.run_case`)."""
+    """Called after every step with the run's tally and the step's row (see :func:`multilayer.runner.loop.run_case`)."""
 
     def __init__(self, steps: int, end: float, start: int = 0, enabled: bool | None = None):
         enabled = sys.stderr.isatty() if enabled is None else enabled

@@ -1,13 +1,13 @@
 """The steps of a run: the coupler advances, the ledger closes, the guards check, the probes read.
 
 :func:`iterate_steps` is the one place where a step happens.  The run loop
-(:mod:`multilayer.run.loop`) consumes it and adds the results folder,
+(:mod:`multilayer.runner.loop`) consumes it and adds the results folder,
 snapshots, checkpoints, signals and the summary; the Python API
 (:mod:`multilayer.api`) consumes it to run in memory or to hand the steps
 to the caller.  Per step, in this order:
 
 1. the coupler advances the state (``coupler.evolve``);
-2. the energy ledger closes (:func:`multilayer.run.ledger.close`);
+2. the energy ledger closes (:func:`multilayer.runner.ledger.close`);
 3. the state is checked (:func:`check_state`: non-finite values, a wall
    collapsing or blown out) — a failure here keeps no row of the step;
 4. the probes are evaluated and the step's row is handed to the output;
@@ -30,7 +30,7 @@ import attrs
 import numpy as np
 
 from multilayer.coupling.contract import Coupler
-from multilayer.run import ledger
+from multilayer.runner import ledger
 from multilayer.scene.setup import Setup
 from multilayer.scene.state import State
 
@@ -124,7 +124,7 @@ class Step:
     ledger : dict of str to float
         The energy ledger of the step: every stored-energy, work and
         dissipation term, ``energy.total``, ``energy.residual`` and
-        ``energy.relative_residual`` (:func:`multilayer.run.ledger.close`).
+        ``energy.relative_residual`` (:func:`multilayer.runner.ledger.close`).
     probes : dict of str to float
         Each probe of ``[output] probes`` by name.
     diagnostics : dict of str to float
@@ -165,7 +165,7 @@ def setting_up() -> Iterator[None]:
     ...     raise ValueError("no such thing")
     Traceback (most recent call last):
     ...
-    multilayer.run.stepping.RunFailed: setting up the scene failed: no such thing
+    multilayer.runner.stepping.RunFailed: setting up the scene failed: no such thing
     """
     try:
         yield

@@ -1,11 +1,11 @@
 """A results folder held in memory: what a run writes, kept as rows and a summary instead of files.
 
 :class:`HeldResults` stands in for :class:`~multilayer.results.folder.ResultsFolder`
-in the run loop (:func:`multilayer.run.loop.run_held`), so a run without a
+in the run loop (:func:`multilayer.runner.loop.run_held`), so a run without a
 folder goes through the same loop, writes the same rows and the same summary,
 and touches no disk.  Snapshots are not kept (a run's fields are the
 :class:`~multilayer.scene.state.State` values of
-:func:`~multilayer.run.stepping.iterate_steps`); nor are checkpoints.
+:func:`~multilayer.runner.stepping.iterate_steps`); nor are checkpoints.
 """
 
 from __future__ import annotations
