@@ -33,7 +33,7 @@ class PressureEnd(BoundaryCondition):
 
     >>> from multilayer.functions.loads import ConstantPressure
     >>> PressureEnd(ConstantPressure(5.0)).traction((0.0, 1.0), 1.0, None, [None])
-    EndTraction(pressure=5.0, resistance=0.0)
+    EndTraction(pressure=5.0, resistance=0.0, flux=None)
     """
 
     implicit = False
