@@ -17,6 +17,7 @@ from multilayer.boundary.contract import BoundaryCondition, BuildContext, EndTra
 from multilayer.functions.domain import Domain, judge
 from multilayer.functions.loads import (
     KINDS,
+    PRESSURE_UNIT,
     FormulaPressure,
     PressureLoad,
     is_zero,
@@ -32,7 +33,7 @@ class PressureEnd(BoundaryCondition):
 
     >>> from multilayer.functions.loads import ConstantPressure
     >>> PressureEnd(ConstantPressure(5.0)).traction((0.0, 1.0), 1.0, None, [None])
-    EndTraction(pressure=5.0, resistance=0.0)
+    EndTraction(pressure=5.0, resistance=0.0, flux=None)
     """
 
     implicit = False
@@ -58,18 +59,25 @@ class PressureEnd(BoundaryCondition):
         return self.load.to_dict()
 
 
-def pressure_end(context: BuildContext, **params: Any) -> PressureEnd:
-    """The end as the case writes it (``context.spec``), its formula judged finite over the run.
+def history_from_spec(spec: Any, path: str, context: BuildContext, quantity: str = "pressure",
+                      unit: str = PRESSURE_UNIT) -> PressureLoad:
+    """A function of t as the case writes it at ``path`` (a load kind), a formula judged finite over the run.
 
+    A table's file is read relative to the case (``context.base_dir``).
     Raises CaseError with the key path (``loads.inlet.duration``...), as the load kinds do.
     """
-    load = load_from_spec(context.spec, context.path, context.base_dir, context.constants)
+    load = load_from_spec(spec, path, context.base_dir, context.constants, quantity, unit)
     if isinstance(load, FormulaPressure):
-        where = context.path if isinstance(context.spec, str) else f"{context.path}.expr"
+        where = path if isinstance(spec, str) else f"{path}.expr"
         problem = judge(load.formula, where, Domain({"t": (0.0, context.end)}))
         if problem is not None:
             raise CaseError([problem])
-    return PressureEnd(load)
+    return load
+
+
+def pressure_end(context: BuildContext, **params: Any) -> PressureEnd:
+    """The end as the case writes it (``context.spec``), its formula judged finite over the run."""
+    return PressureEnd(history_from_spec(context.spec, context.path, context))
 
 
 _DOCS = {

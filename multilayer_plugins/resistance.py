@@ -25,7 +25,7 @@ class Resistance(BoundaryCondition):
     """p = ``pressure`` + ``resistance`` · Q at an end.
 
     >>> Resistance(resistance=100.0, pressure=5.0).traction((0.0, 1e-3), 1e-3, None, [None])
-    EndTraction(pressure=5.0, resistance=100.0)
+    EndTraction(pressure=5.0, resistance=100.0, flux=None)
     """
 
     implicit = True

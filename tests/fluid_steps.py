@@ -20,9 +20,10 @@ class Given(BoundaryCondition):
         return EndTraction(self.pressure)
 
 
-def setup_fluid(fluid, length, radius, nz, nr, **options):
-    """``fluid.setup`` on the planar channel L × R, each end a :class:`Given` pressure (0 until set)."""
-    ends = {"inlet": Given(), "outlet": Given()}
+def setup_fluid(fluid, length, radius, nz, nr, ends=None, **options):
+    """``fluid.setup`` on the planar channel L × R, each end a :class:`Given` pressure (0 until set) unless
+    ``ends`` gives its condition."""
+    ends = {"inlet": Given(), "outlet": Given(), **(ends or {})}
     return fluid.setup(FluidSetup(Planar(), length, radius, nz, nr, ends=ends, **options))
 
 

@@ -21,6 +21,34 @@ relative to G/(ωρ) √(LR).  Measured (ω = 2π s⁻¹, Womersley number 6.7):
 Crank–Nicolson and BDF2 (:mod:`multilayer.numerics.timescheme`) are checked the same
 way for order 2; a two-step scheme starts from the exact solution at t = 0
 and t = −Δt.
+
+Driven by a prescribed flow instead (a ``flow-rate`` inlet, the outlet at
+p = 0): the profile of the same shape whose flux ∫₀^R u_z dr is Q̂ cos ωt
+has the amplitude Q̂ / (R − tanh(κR)/κ), and the pressure gradient that
+drives it is ρλ times that amplitude (λ the symbol); the inlet's multiplier
+is the exact mean inlet pressure G L cos ωt at the step's test level.  The
+flux is imposed on each new level, so backward Euler's exact periodic
+solution is the profile with κ from its symbol and the flux Q̂ itself.
+Errors in u as above (relative to Q̂/R √(LR)), in λ relative to |G| L.
+Measured (Q̂ = 1 cm²/s):
+
+    space, BE symbol, Δt = T/20, 4 steps, nz = nr = 4, 8, 16, 32
+      P2/P1   u 6.56e-3  9.16e-4  1.17e-4  1.47e-5   orders 2.84 2.97 2.99
+              λ 3.37e-4  1.54e-5  8.39e-7  5.05e-8   orders 4.45 4.20 4.06
+      P1b/P1  u 3.05e-2  9.92e-3  2.64e-3  6.68e-4   orders 1.62 1.91 1.98
+              λ 1.47e-2  3.62e-3  8.97e-4  2.24e-4   orders 2.02 2.01 2.00
+    time, P2 nz = 4, to T/2, Δt = T/10 … T/80 (nr = 16; T/20 … T/80 and nr = 32 for CN, BDF2)
+      BE      u 2.93e-2  1.57e-2  8.16e-3  4.16e-3   orders 0.90 0.95 0.97
+              λ 2.86e-1  1.47e-1  7.41e-2  3.71e-2   orders 0.96 0.99 1.00
+      CN      u          1.17e-3  2.93e-4  7.43e-5   orders 2.00 1.98
+              λ          1.72e-3  3.46e-4  7.59e-5   orders 2.31 2.19
+      BDF2    u          4.23e-3  1.12e-3  2.88e-4   orders 1.91 1.97
+              λ          8.80e-3  1.32e-3  2.16e-4   orders 2.74 2.61
+
+(Averaging Q over each step's window instead, as a pressure is, keeps the
+velocity orders but leaves Crank–Nicolson's undamped mode in the level
+fluxes: CN's u errors 14× larger (1.68e-2 at T/20) and its λ first order,
+4.85e-2, 2.38e-2, 1.18e-2.)
 """
 
 import numpy as np
@@ -28,27 +56,45 @@ import pytest
 from fluid_steps import given, setup_fluid
 
 from multilayer.fluid.contract import Domain
+from multilayer.functions.loads import SinePressure
 from multilayer.numerics.timescheme import SCHEMES
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
+from multilayer_plugins.flow_rate import FlowRate
 
 L, R, MU, RHO = 1.0, 0.5, 0.035, 1.0
 PERIOD = 1.0
 OMEGA = 2 * np.pi / PERIOD
 
 
-def womersley(G, lam):
-    """u(t) as a function of (z, r), for the symbol λ (iω: continuous, BE symbol: discrete)."""
-    kappa = np.sqrt(RHO * lam / MU)
+def kappa_of(lam):
+    """κ = √(ρλ/μ) for the symbol λ (iω: continuous, BE symbol: discrete)."""
+    return np.sqrt(RHO * lam / MU)
+
+
+def profile(amplitude, lam):
+    """u(t) = Re{amplitude (1 − cosh κr / cosh κR) e^{iωt}} as a function of (z, r)."""
+    kappa = kappa_of(lam)
 
     def at(t):
         def u(z, r):
-            U = G / (1j * OMEGA * RHO) * (1 - np.cosh(kappa * r) / np.cosh(kappa * R)) * np.exp(1j * OMEGA * t)
+            U = amplitude * (1 - np.cosh(kappa * r) / np.cosh(kappa * R)) * np.exp(1j * OMEGA * t)
             return np.real(U), 0 * r
 
         return u
 
     return at
+
+
+def womersley(G, lam):
+    """u(t) driven by the pressure gradient G cos ωt averaged over each step."""
+    return profile(G / (1j * OMEGA * RHO), lam)
+
+
+def flux_amplitude(Q, lam):
+    """The amplitude of the profile whose flux is Q: ∫₀^R (1 − cosh κr / cosh κR) dr = R − tanh(κR)/κ."""
+    kappa = kappa_of(lam)
+    return Q / (R - np.tanh(kappa * R) / kappa)
 
 
 def mean_pressure_drop(G, t, dt):
@@ -74,6 +120,33 @@ def run(cls, order, nz, nr, dt, steps, discrete_reference, G=10.0, scheme="backw
     state = history[0]
     scale = G / (OMEGA * RHO) * np.sqrt(L * R)
     return fluid, state, l2_error(fluid.channel, state.u, np.zeros(fluid.line.ndofs), exact(t)) / scale
+
+
+def run_flux(order, nz, nr, dt, steps, discrete_reference, Q=1.0, scheme="backward-euler"):
+    """Womersley flow driven by the inflow Q cos ωt (a flow-rate inlet), p = 0 at the outlet.
+
+    Returns the relative L² error of u at the end and that of the inlet's multiplier λ in the last step.
+    """
+    lam = (1 - np.exp(-1j * OMEGA * dt)) / dt if discrete_reference else 1j * OMEGA
+    amplitude = flux_amplitude(Q, lam)
+    G = RHO * lam * amplitude  # −∂p/∂z: ρλU − μU'' = G
+    exact = profile(amplitude, lam)
+    S = SCHEMES[scheme]
+    fluid = Stokes(RHO, MU)
+    inflow = SinePressure(amplitude=Q, frequency=1.0 / PERIOD, phase=np.pi / 2)  # Q cos ωt
+    setup_fluid(fluid, L, R, nz=nz, nr=nr, order=order, wall="rigid", ends={"inlet": FlowRate(inflow)})
+    still = Domain.still(fluid.line.ndofs)
+    history, t = [fluid.initial_state(exact(0.0)), fluid.initial_state(exact(-dt))], 0.0
+    for _ in range(steps):
+        solution, energy = fluid.step(history, still, S, dt, (t, t + dt))
+        history, t = [solution.state, history[0]], t + dt
+        assert abs(energy["a2.residual"]) <= 1e-12 * energy["a2.scale"]
+        # the new level carries the prescribed flow exactly
+        assert fluid.flow_rate(solution.state, None, 0.0) == pytest.approx(Q * np.cos(OMEGA * t), abs=1e-12 * Q)
+    inlet = np.real(G * L * np.exp(1j * OMEGA * (t - dt + S.theta * dt)))  # at the test level
+    scale = Q / R * np.sqrt(L * R)
+    velocity = l2_error(fluid.channel, history[0].u, np.zeros(fluid.line.ndofs), exact(t)) / scale
+    return velocity, abs(energy["end.inlet.p"] - inlet) / (abs(G) * L)
 
 
 def orders(errors):
@@ -115,3 +188,27 @@ def test_stokes_factorizes_once_and_navier_stokes_every_step():
     st = navier.discrete.stats
     assert st.factorizations + st.krylov_solves == 3 and st.factorizations >= 1
     assert stokes.discrete.stats.solves == 3
+
+
+@pytest.mark.parametrize("order, expected", [(2, 3.0), (1, 2.0)])
+def test_flux_driven_space_convergence_at_the_element_order(order, expected):
+    """u at the element's order (P2 2.97, 2.99; P1b 1.91, 1.98), λ at least (P2 4.20, 4.06; P1b 2.01, 2.00)."""
+    velocity, inlet = zip(*[run_flux(order, n, n, PERIOD / 20, 4, True) for n in (8, 16, 32)])
+    assert np.all(np.abs(orders(velocity) - expected) < 0.1), orders(velocity)
+    assert np.all(orders(inlet) > expected - 0.1), orders(inlet)
+
+
+def test_flux_driven_time_convergence_is_first_order():
+    """Backward Euler: u 0.95, 0.97 and λ 0.99, 1.00 (from T/20)."""
+    velocity, inlet = zip(*[run_flux(2, 4, 16, PERIOD / n, n // 2, False) for n in (20, 40, 80)])
+    assert velocity[0] < 2e-2 and inlet[0] < 0.2
+    assert np.all(np.abs(orders(velocity) - 1.0) < 0.06), orders(velocity)
+    assert np.all(np.abs(orders(inlet) - 1.0) < 0.06), orders(inlet)
+
+
+@pytest.mark.parametrize("scheme", ["crank-nicolson", "bdf2"])
+def test_flux_driven_time_convergence_of_the_second_order_schemes(scheme):
+    """u: CN 2.00, 1.98, BDF2 1.91, 1.97; λ: CN 2.31, 2.19, BDF2 2.74, 2.61 (T/20 … T/80, nr = 32)."""
+    velocity, inlet = zip(*[run_flux(2, 4, 32, PERIOD / n, n // 2, False, scheme=scheme) for n in (20, 40, 80)])
+    assert np.all(orders(velocity) > 1.8), orders(velocity)
+    assert np.all(orders(inlet) > 1.8), orders(inlet)

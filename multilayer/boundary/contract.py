@@ -12,6 +12,16 @@ a resistance or a Windkessel outlet, whose pressure follows the flow, has
 one, and the fluid then carries the term R (∫ q·n)(∫ ū·n) in its matrix:
 implicit, no sub-iterations (docs/theory.md, "Boundary conditions").
 
+A condition may instead prescribe the flux itself (a flow rate: it
+declares ``constraint`` and gives the outward flux Q(t),
+:meth:`BoundaryCondition.flux`).  Its mean pressure is then an unknown of
+the step, a Lagrange multiplier λ the fluid appends to its system (one per
+such end), with the constraint that the new level has the flux,
+∫ u^{n+1}·n = Q(tⁿ⁺¹): on the test level, ∫ ū·n = Q̄ = β₀Q(tⁿ⁺¹) plus the
+old levels' fluxes (``EndTraction.flux``).  Once solved, the end's traction
+is p̄ = λ, and that resolved traction is what the condition's ``advance``
+and ``ledger`` receive (docs/flow-rate-inlet.md).
+
 A condition may have its own state (a Windkessel's capacitor pressure): a
 value the fluid keeps in its state, one per end, that the condition
 advances from the step's flux (:meth:`BoundaryCondition.advance`) and whose
@@ -33,7 +43,7 @@ import attrs
 
 @attrs.frozen
 class EndTraction:
-    """What an end imposes over one step: p̄ = ``pressure`` + ``resistance`` · Q̄ (Q̄ outward).
+    """What an end imposes over one step: p̄ = ``pressure`` + ``resistance`` · Q̄ (Q̄ outward), or Q̄ = ``flux``.
 
     ``pressure`` in dyn/cm²; ``resistance`` in dyn·s/cm⁵ in a tube (dyn·s/cm⁴
     per unit depth in a planar channel), ≥ 0 for a dissipative end.
@@ -41,6 +51,11 @@ class EndTraction:
 
     pressure: float
     resistance: float = 0.0
+    #: the outward flux Q̄ of the step's test-level velocity (cm²/s per unit depth planar, cm³/s in a tube),
+    #: for an end that prescribes it (:attr:`BoundaryCondition.constraint`; the fluid sets it from
+    #: :meth:`BoundaryCondition.flux`); None: the flux is free.  Its pressure is then the multiplier λ once
+    #: the step is solved (0 before)
+    flux: float | None = None
 
     def mean(self, flux: float) -> float:
         """p̄ for the outward flux ``flux``."""
@@ -77,6 +92,11 @@ class BoundaryCondition(ABC):
     #: True when the end's pressure may depend on its flux (a resistance): the fluid's system then holds
     #: the end's rank-one term, so its sparsity pattern couples the end's DOFs
     implicit: ClassVar[bool] = False
+    #: True when the end prescribes its flux (:meth:`flux`) rather than its pressure: the fluid's system gains
+    #: one unknown, the end's mean pressure λ, and the row ∫ J ū·n = Q̄ (in the sparsity pattern from setup);
+    #: its :meth:`traction` has no pressure of its own (``EndTraction(0.0)``), and ``advance`` and ``ledger``
+    #: receive the traction with pressure λ
+    constraint: ClassVar[bool] = False
 
     def initial_state(self) -> Any:
         """The condition's own state at t = 0 (None: it has none)."""
@@ -84,7 +104,7 @@ class BoundaryCondition(ABC):
 
     @abstractmethod
     def traction(self, window: tuple[float, float], dt: float, scheme: Any, history: Sequence[Any]) -> EndTraction:
-        """p̄ of the step as pressure + resistance · Q̄.
+        """p̄ of the step as pressure + resistance · Q̄ (a ``constraint`` end: ``EndTraction(0.0)``, p̄ = λ).
 
         ``window`` is the interval the scheme averages loads over (the step's
         [tⁿ, tⁿ⁺¹] for every scheme here); ``history`` the condition's states
@@ -92,8 +112,19 @@ class BoundaryCondition(ABC):
         step's time ``scheme`` (:class:`multilayer.numerics.timescheme.TimeScheme`).
         """
 
+    def flux(self, time: float, history: Sequence[Any]) -> float:
+        """The outward flux Q(t) a ``constraint`` end prescribes at ``time`` (the step's new level tⁿ⁺¹).
+
+        The fluid imposes it on the new level's velocity, ∫ J u^{n+1}·n = Q(tⁿ⁺¹): a flux is
+        data on the velocity, like a Dirichlet value, not a load averaged over the step.
+        """
+        raise NotImplementedError(f"{type(self).__name__} declares constraint = True but gives no flux")
+
     def advance(self, traction: EndTraction, flux: float, dt: float, scheme: Any, history: Sequence[Any]) -> Any:
-        """The state at tⁿ⁺¹ from the step's outward flux Q̄ (a condition without state: None)."""
+        """The state at tⁿ⁺¹ from the step's outward flux Q̄ (a condition without state: None).
+
+        For a ``constraint`` end, ``traction.pressure`` is the step's multiplier λ, its mean pressure.
+        """
         return None
 
     def energy(self, end: str, state: Any) -> dict[str, float]:

@@ -9,7 +9,9 @@ sine, piecewise-linear table) and a 5-point Gauss–Legendre rule otherwise
 A case file writes a load as a number (constant), a string (formula in
 ``t``) or a table ``{kind = "...", ...}``; :func:`load_from_spec` turns any
 of them into a :class:`PressureLoad` or raises a
-:class:`~multilayer.plugin.problems.CaseError` naming the key path.
+:class:`~multilayer.plugin.problems.CaseError` naming the key path.  The
+same kinds serve another quantity given as a function of t (a flow rate):
+the caller names its unit, in which the messages speak.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from __future__ import annotations
 import hashlib
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -33,6 +35,27 @@ from multilayer.plugin.problems import (
     did_you_mean,
 )
 from multilayer.plugin.records import Param
+
+#: the unit of the values of the load kinds (:data:`KINDS`): a pressure's
+PRESSURE_UNIT = "dyn/cm²"
+
+
+class LoadSpec(ABC):
+    """The type of a plugin parameter whose value is a load as a case writes it, for :func:`load_from_spec`:
+    a number, a formula in t or a table ``{kind = ...}`` (``Param("flow", type=LoadSpec)``).
+
+    >>> isinstance(2.0, LoadSpec), isinstance("sin(t)", LoadSpec), isinstance({"kind": "sine"}, LoadSpec)
+    (True, True, True)
+    >>> isinstance(True, LoadSpec), isinstance([1.0], LoadSpec)
+    (False, False)
+    """
+
+    #: what a value of this type is, in the words of a validation message
+    noun: ClassVar[str] = "a number, a formula in t or a table {kind = ...}"
+
+    @classmethod
+    def __subclasshook__(cls, other: type) -> bool:
+        return not issubclass(other, bool) and issubclass(other, int | float | str | Mapping)
 
 
 def is_zero(load: PressureLoad | None) -> bool:
@@ -318,9 +341,13 @@ KINDS: dict[str, tuple[Param, ...]] = {
 
 
 def load_from_spec(
-    spec: Any, path: str, base_dir: Path | str = ".", constants: Mapping[str, float] | None = None
+    spec: Any, path: str, base_dir: Path | str = ".", constants: Mapping[str, float] | None = None,
+    quantity: str = "pressure", unit: str = PRESSURE_UNIT,
 ) -> PressureLoad:
     """Build a load from its case-file form: a number, a formula string or a table.
+
+    ``quantity`` and ``unit`` name what the values are, for the messages
+    (a flow rate's values are in its own unit, not in dyn/cm²).
 
     Raises
     ------
@@ -339,10 +366,15 @@ def load_from_spec(
     Traceback (most recent call last):
     ...
     multilayer.plugin.problems.CaseError: loads.inlet.kind = 'cosine-puls': no such pressure load kind; did you mean 'cosine-pulse'?
+    >>> load_from_spec({"kind": "sine", "amplitude": "2"}, "loads.inlet.flow", quantity="flow rate", unit="cm²/s")
+    Traceback (most recent call last):
+    ...
+    multilayer.plugin.problems.CaseError: loads.inlet.flow.amplitude = '2': expected a number (cm²/s)
+    loads.inlet.flow.frequency: missing; expected a number > 0.0 (Hz)
     """
     if isinstance(spec, int | float) and not isinstance(spec, bool):
         if not math.isfinite(spec):
-            raise CaseError([Problem(path, spec, "expected a finite pressure (dyn/cm²)")])
+            raise CaseError([Problem(path, spec, f"expected a finite {quantity} ({unit})")])
         return ConstantPressure(spec)
     if isinstance(spec, str):
         return FormulaPressure(_formula(spec, path, constants))
@@ -350,10 +382,10 @@ def load_from_spec(
         raise CaseError([Problem(path, spec, "expected a number, a formula in t or a table {kind = ...}")])
     kind = spec.get("kind", MISSING)
     if not isinstance(kind, str) or kind not in KINDS:
-        expected = "no such pressure load kind" if kind is not MISSING else "missing; expected a load kind"
+        expected = f"no such {quantity} load kind" if kind is not MISSING else "missing; expected a load kind"
         hint = did_you_mean(kind, KINDS) if isinstance(kind, str) else ""
         raise CaseError([Problem(f"{path}.kind", kind, expected, hint or "kinds: " + ", ".join(KINDS))])
-    params, problems = check_params(spec, KINDS[kind], path, extra=("kind",))
+    params, problems = check_params(spec, in_unit(KINDS[kind], unit), path, extra=("kind",))
     if problems:
         raise CaseError(problems)
     if kind == "constant":
@@ -365,6 +397,15 @@ def load_from_spec(
     if kind == "formula":
         return FormulaPressure(_formula(params["expr"], f"{path}.expr", constants))
     return _table(params, path, Path(base_dir))
+
+
+def in_unit(params: Sequence[Param], unit: str) -> tuple[Param, ...]:
+    """The load kind's parameters with their values in ``unit`` instead of dyn/cm² (times, frequencies stay).
+
+    >>> [p.unit for p in in_unit(KINDS["sine"], "cm²/s")]
+    ['cm²/s', 'Hz', 'cm²/s', 'rad']
+    """
+    return tuple(attrs.evolve(p, unit=unit) if p.unit == PRESSURE_UNIT else p for p in params)
 
 
 def _formula(expr: str, path: str, constants: Mapping[str, float] | None) -> Formula:

@@ -91,7 +91,7 @@ def describe(param: Param) -> str:
     if param.choices is not None:
         return "one of " + ", ".join(show(c) for c in param.choices)
     noun = {float: "a number", int: "an integer", str: "a string", bool: "true or false"}.get(
-        param.type, param.type.__name__
+        param.type, getattr(param.type, "noun", param.type.__name__)  # a type may say what it is
     )
     bounds = param.bounds_text()
     unit = f" ({param.unit})" if param.unit and param.unit != "1" else ""

@@ -103,7 +103,7 @@ class ChannelFluid(Fluid):
 
     @property
     def ndofs(self) -> int:
-        return self.channel.ndofs
+        return self.discrete.ndofs
 
     @property
     def interface_dofs(self) -> np.ndarray:

@@ -13,6 +13,10 @@ on the wall, such that
 every integral in the geometry's measure, where each open end e (inlet,
 outlet) has the mean pressure p̄_e = P_e + R_e Q̄_e its condition gives
 (:mod:`multilayer_plugins.channel.ends`; a prescribed pressure has R_e = 0).
+An end that prescribes its flux instead (a flow rate) has an unknown mean
+pressure λ_e, appended after (ū, p̄): its term λ_e ∫_Γe J q·n on the left
+and the row ∫_Γe J ū·n = Q̄_e (the test level of u^{n+1}'s prescribed
+flux), so the unknowns are x̄ = (ū, p̄, λ).
 The old levels go to the right-hand side, so the matrix is
 (α₀/β₀) ρ_f/Δt mass_J + the rest (a backward-Euler matrix of step Δt β₀/α₀).
 [R v̄ − r] is what a coupler puts on the wall's u_r rows (line numbering):
@@ -45,7 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from multilayer.boundary.contract import BoundaryCondition, EndTraction
-from multilayer.fluid.contract import Domain, Interface
+from multilayer.fluid.contract import ENDS, Domain, Interface
 from multilayer.geometry.spaces import prolongation_dofs
 from multilayer.numerics.assembly.batched import BatchedForm, SkewPart
 from multilayer.numerics.assembly.pattern import Pattern
@@ -119,7 +123,7 @@ class FluidSystem:
 
 @attrs.frozen(eq=False)
 class Solution:
-    """The solved test-level unknowns x̄ = (ū, p̄) and the new state."""
+    """The solved test-level unknowns x̄ = (ū, p̄, λ) and the new state."""
 
     mean: np.ndarray
     state: FluidState
@@ -163,11 +167,16 @@ class FluidStep:
         self.ledger_s = 0.0
 
         ub, pb = channel.velocity, channel.pressure
-        nu, n = channel.nu, channel.ndofs
+        nu = channel.nu
         self._uu = BatchedForm(ub)
         self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
         self.ends = Ends(channel, ends or {})
+        if wall != "coupled" and len(self.ends.multipliers) == len(ENDS):
+            # the incompressibility dilemma: a fluid whose wall it does not move has no volume to give
+            raise ValueError(f"a flow rate at both ends of a fluid on a {wall} wall fixes its volume balance twice "
+                             f"and leaves the level of the pressure free: prescribe a pressure at one end")
+        n = self.ndofs
         self.pattern = Pattern((n, n), [uu, pu, pu[::-1], *self.ends.entries()])
         self.ends.place(self.pattern)
         # the data array of a step: velocity block, divergence rows, and their negated transpose
@@ -193,6 +202,11 @@ class FluidStep:
         # the data with the interface terms (and the free block's values, kept by the block): kept for the run,
         # so only the latest system's matrix is valid — every coupler solves a system in the step that assembles it
         self._with_interface: np.ndarray | None = None
+
+    @property
+    def ndofs(self) -> int:
+        """Unknowns of the step: (u, p) and a multiplier λ_e per end that prescribes its flux."""
+        return self.channel.ndofs + len(self.ends.multipliers)
 
     @property
     def constant_matrix(self) -> bool:
@@ -283,7 +297,7 @@ class FluidStep:
         hist = tuple(levels(history[0], history[1:], scheme.old_levels))
         fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, domain.eta, domain.velocity)
         mass_coefficient = scheme.inertia * self.density / dt
-        tractions = self.ends.tractions(scheme.load_window(*times), dt, scheme, [s.ends for s in hist])
+        tractions = self.ends.tractions(times, dt, scheme, hist, fields)
         key = (mass_coefficient, *self.ends.resistances(tractions))
         constant = self._constant.get(key) if self.constant_matrix else None
         if constant is not None:
@@ -304,7 +318,7 @@ class FluidStep:
             np.copyto(data, own)
             for slots, values in self._interface_terms(interface):
                 np.add.at(data, slots, values)
-        own_rhs = np.zeros(ch.ndofs)
+        own_rhs = np.zeros(self.ndofs)
         h = scheme.history([s.u for s in hist])
         own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply([(1.0, forms.mass_J, {"J": fields.J})], h)
         self.ends.add_rhs(own_rhs, tractions, fields)
@@ -312,7 +326,7 @@ class FluidStep:
         if interface is not None:
             rhs = own_rhs.copy()
             rhs[: ch.nu] += ch.prolongation @ interface.rhs
-        fixed_values = np.zeros(ch.ndofs)
+        fixed_values = np.zeros(self.ndofs)
         if self.wall == "prescribed":
             fixed_values[: ch.nu] = ch.prolongation @ domain.velocity
             fixed_values[ch.normal_r] = 0.0
@@ -335,7 +349,7 @@ class FluidStep:
         if system.fixed_values.any():  # only a prescribed wall's ū_r is not zero: no block to build otherwise
             rhs -= self._block_fd.matrix(system.data) @ system.fixed_values
         self.assembly_s += time.perf_counter() - t0
-        x = np.zeros(self.channel.ndofs)
+        x = np.zeros(self.ndofs)
         x[self.fixed] = system.fixed_values
         if self.constant_matrix:
             key = system.key
@@ -362,18 +376,21 @@ class FluidStep:
         if self.wall != "prescribed":
             raise ValueError(f"only a prescribed wall takes a wall velocity, not {self.wall!r}")
         self._check_ends(wall_velocity)
-        values = np.zeros(self.channel.ndofs)
+        values = np.zeros(self.ndofs)
         values[: self.channel.nu] = self.channel.prolongation @ wall_velocity
         values[self.channel.normal_r] = 0.0
         return attrs.evolve(system, fixed_values=values[self.fixed])
 
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
-        """The new state from the solved x̄ = (ū, p̄): u^{n+1} from the scheme, v its wall trace."""
+        """The new state from the solved x̄ = (ū, p̄, λ): u^{n+1} from the scheme, v its wall trace, the ends'
+        states advanced with their tractions as solved (a flow-rate end's mean pressure λ)."""
         nu = self.channel.nu
         u = system.scheme.new_level(mean[:nu], [s.u for s in system.history])
-        ends = self.ends.advance(system.tractions, self.ends.fluxes(mean[:nu], system.fields), system.dt,
+        tractions = self.ends.resolve(system.tractions, mean)
+        ends = self.ends.advance(tractions, self.ends.fluxes(mean[:nu], system.fields), system.dt,
                                  system.scheme, [s.ends for s in system.history])
-        return Solution(mean, FluidState(u, mean[nu:].copy(), self.channel.wall_trace(u), ends))
+        state = FluidState(u, mean[nu:self.channel.ndofs].copy(), self.channel.wall_trace(u), ends)
+        return Solution(mean, state)
 
     def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
         """The fluid's own residual A x̄ − b on the wall's u_r rows, as a line vector.
@@ -428,10 +445,11 @@ class FluidStep:
         strain = quad.strain_squared(ubar, fields)
         # each end's outward flux Q̄ = ∫ J ū·n, and what its condition makes of the power −Δt p̄ Q̄ it hands the fluid
         fluxes = self.ends.fluxes(ubar, fields)
+        tractions = self.ends.resolve(system.tractions, solution.mean)  # a flow-rate end's p̄ is its λ
         old_ends, new_ends = system.history[0].ends, solution.state.ends
         end_work, end_dissipation, end_power, end_columns = {}, {}, {}, {}
         for end, condition in self.ends.conditions.items():
-            traction, flux = system.tractions[end], fluxes[end]
+            traction, flux = tractions[end], fluxes[end]
             work, dissipation = condition.ledger(end, traction, flux, dt, old_ends.get(end), new_ends.get(end))
             end_work.update(work)
             end_dissipation.update(dissipation)
