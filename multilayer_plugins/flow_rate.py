@@ -19,7 +19,7 @@ symmetrically; the couplers see only a larger system.  Over a step the end
 hands the fluid −Δt λ Q̄_out = Δt λ Q̄_in, the work of the prescribed flow
 (column ``work.<end>``); the fluid writes λ and Q̄_out as ``end.<end>.p``
 and ``end.<end>.Q``.  The condition's state is the multiplier of the step
-that made it (None before the first step).  docs/flow-rate-inlet.md.
+that made it (None before the first step).  docs/boundary-conditions.md, "A prescribed flow rate".
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ such end), with the constraint that the new level has the flux,
 ∫ u^{n+1}·n = Q(tⁿ⁺¹): on the test level, ∫ ū·n = Q̄ = β₀Q(tⁿ⁺¹) plus the
 old levels' fluxes (``EndTraction.flux``).  Once solved, the end's traction
 is p̄ = λ, and that resolved traction is what the condition's ``advance``
-and ``ledger`` receive (docs/flow-rate-inlet.md).
+and ``ledger`` receive (docs/boundary-conditions.md, "A prescribed flow rate").
 
 A condition may have its own state (a Windkessel's capacitor pressure): a
 value the fluid keeps in its state, one per end, that the condition
@@ -106,8 +106,9 @@ class BoundaryCondition(ABC):
     def traction(self, window: tuple[float, float], dt: float, scheme: Any, history: Sequence[Any]) -> EndTraction:
         """p̄ of the step as pressure + resistance · Q̄ (a ``constraint`` end: ``EndTraction(0.0)``, p̄ = λ).
 
-        ``window`` is the interval the scheme averages loads over (the step's
-        [tⁿ, tⁿ⁺¹] for every scheme here); ``history`` the condition's states
+        ``window`` is the interval the scheme averages loads over
+        (:meth:`TimeScheme.load_window`: the step [tⁿ, tⁿ⁺¹] for backward Euler
+        and Crank–Nicolson, one step centred on tⁿ⁺¹ for BDF2); ``history`` the condition's states
         at tⁿ, tⁿ⁻¹, ... (newest first), for a condition discretized by the
         step's time ``scheme`` (:class:`multilayer.numerics.timescheme.TimeScheme`).
         """
