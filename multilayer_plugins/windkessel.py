@@ -98,6 +98,17 @@ class Windkessel(BoundaryCondition):
         levels = [new, *old]
         return CapacitorState(new, scheme.stored(self._energy, levels), mean, scheme.numerical(self._energy, levels))
 
+    def state_to_data(self, state: CapacitorState) -> dict[str, float]:
+        """The capacitor's state as data (a checkpoint's): its four numbers."""
+        return {k: float(v) for k, v in attrs.asdict(state).items()}
+
+    def state_from_data(self, data: Any) -> CapacitorState:
+        fields = [f.name for f in attrs.fields(CapacitorState)]
+        if not isinstance(data, dict) or sorted(data) != sorted(fields) or not all(
+                isinstance(v, float) for v in data.values()):
+            raise ValueError(f"a Windkessel's state should be the numbers {', '.join(fields)}")
+        return CapacitorState(**data)
+
     def energy(self, end: str, state: CapacitorState) -> dict[str, float]:
         return {f"stored.{end}": state.stored}
 

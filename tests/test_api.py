@@ -257,6 +257,6 @@ def test_run_options(tmp_path, capsys):
     rows = []
     res = ml.run(case, tmp_path / "cp", checkpoint_every=10, progress=rows.append, plots=True)
     assert res.ok and [r["step"] for r in rows] == list(range(1, 21)) and rows[-1]["t"] == res.t[-1]
-    assert {"checkpoint.pkl", "probes.png", "energy.png"} <= {p.name for p in (tmp_path / "cp").iterdir()}
+    assert {"checkpoint.json", "checkpoint.npz", "probes.png", "energy.png"} <= {p.name for p in (tmp_path / "cp").iterdir()}
     assert ml.run(case, progress=True).ok
     assert "step" in capsys.readouterr().err  # the progress bar

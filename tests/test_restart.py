@@ -1,6 +1,5 @@
 """Nothing lost: checkpoints and resume, interruptions, a folder held by one run, a full disk, the figures."""
 
-import csv
 import errno
 import json
 import os
@@ -17,10 +16,11 @@ from multilayer.case.casefile import load_case
 from multilayer.commands.common import INTERRUPTED
 from multilayer.commands.main import main
 from multilayer.results.folder import ResultsFolder, _append_to_collection, _pvd
-from multilayer.runner.loop import run_case
+from multilayer.runner import checkpoint
+from multilayer.runner.loop import resume_run, run_case
 
-#: with solver.reuse = "krylov" (the default) every checkpoint makes the next solve factorize afresh, as a
-#: resumed run's first solve must: a checkpointed run and its resume are bit-identical
+#: a checkpoint keeps every reusing solver's held state (the matrix of its factors, its counters, its guess
+#: span), so a run with checkpoints, and one resumed from them, are bit-identical to one without
 SMALL = ["mesh.nz=12", "mesh.nr=3", "output.every=10"]
 COUPLERS = ['{model="kinematic-splitting",scheme="crank-nicolson",beta=1}', '{model="monolithic",scheme="bdf2"}',
             '{model="dirichlet-neumann-implicit",reuse=4}']
@@ -53,24 +53,48 @@ def test_a_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, coupler, f
     assert summary["steps"] == 100 and summary["resumed_from"] == 50 and summary["status"] == "ok"
 
 
-def test_a_krylov_run_without_checkpoints_agrees_with_a_resumed_one_to_the_solver_tolerance(tmp_path):
-    """Without checkpoints the preconditioner is never restarted: equal to ~1e-12, not bitwise."""
+def test_a_krylov_run_without_checkpoints_is_bit_identical_to_a_resumed_one(tmp_path):
+    """The held solver state is checkpointed and restored: a run without checkpoints and one stopped at step 50
+    and resumed write the same bytes."""
     sets = ("mesh.nz=12", "mesh.nr=3", "solver.reuse=krylov")
     _, _, full = run_cli("pulse-koiter-thick", tmp_path / "full", *sets, "time.end=0.01")
     assert main(argv(tmp_path / "half", "time.end=0.005", "solver.reuse=krylov", extra=["--checkpoint-every", "25"])) == 0
     assert main(["resume", str(tmp_path / "half"), "--until", "0.01", "--quiet", "--no-plots"]) == 0
-    with open(tmp_path / "half" / "series.csv") as fh:
-        half = list(csv.DictReader(fh))
-    assert len(half) == len(full) == 100
-    for key in ("eta_z1", "q_in", "energy.total"):
-        a = np.array([float(r[key]) for r in full])
-        b = np.array([float(r[key]) for r in half])
-        assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(a)), key
+    assert len(full) == 100
+    for name in ("series.csv", "eta_lumen.csv"):
+        assert (tmp_path / "half" / name).read_bytes() == (tmp_path / "full" / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("coupler, factors", [(COUPLERS[0], "double"), (COUPLERS[1], "double"),
+                                              (COUPLERS[0], "single"), (COUPLERS[1], "single")])
+def test_checkpoints_and_interruptions_do_not_perturb_a_krylov_run(tmp_path, coupler, factors):
+    """Without checkpoints; with one every 7 steps; and interrupted at steps 17 and 58 (a checkpoint written
+    there only), resumed each time: the same bytes of series.csv and eta_lumen.csv."""
+    case = load_case(CASES / "pulse-koiter-thick.toml",
+                     [*SMALL, "time.end=0.01", f"coupler={coupler}", "solver.reuse=krylov", f"solver.factors={factors}"])
+    reference = tmp_path / "none"
+    assert run_case(case, reference).status == "ok"
+
+    def interrupt_at(n):
+        def progress(tally, row):
+            if tally.steps == n:
+                os.kill(os.getpid(), signal.SIGINT)
+        return progress
+
+    every, cut = tmp_path / "every", tmp_path / "cut"
+    assert run_case(case, every, checkpoint_every=7).status == "ok"
+    assert run_case(case, cut, checkpoint_every=1000, progress=interrupt_at(17)).status == "interrupted"
+    assert resume_run(cut, progress=interrupt_at(58)).status == "interrupted"
+    assert resume_run(cut).status == "ok"
+    assert json.loads((cut / "summary.json").read_text())["resumed_from"] == 58
+    for name in ("series.csv", "eta_lumen.csv"):
+        expected = (reference / name).read_bytes()
+        assert (every / name).read_bytes() == expected, name
+        assert (cut / name).read_bytes() == expected, name
 
 
 def test_sigint_stops_cleanly_with_a_checkpoint_and_resume_finishes_the_run(tmp_path):
-    # direct solves: the interruption comes at a step no checkpoint cadence predicts (with Krylov reuse
-    # the uninterrupted run would not restart its preconditioner there)
+    # direct solves (Krylov reuse: test_checkpoints_and_interruptions_do_not_perturb_a_krylov_run)
     case = load_case(CASES / "pulse-koiter-thick.toml", [*SMALL, "time.end=0.01", "solver.reuse=none"])
     full, cut = tmp_path / "full", tmp_path / "cut"
     run_case(case, full)
@@ -83,7 +107,8 @@ def test_sigint_stops_cleanly_with_a_checkpoint_and_resume_finishes_the_run(tmp_
     assert result.status == "interrupted" and result.steps == 30
     summary = json.loads((cut / "summary.json").read_text())
     assert summary["status"] == "interrupted" and "SIGINT after step 30" in summary["reason"]
-    assert (cut / "checkpoint.pkl").is_file()  # written when interrupted, though the cadence is 1000
+    assert (cut / "checkpoint.json").is_file() and (cut / "checkpoint.npz").is_file()  # written when interrupted,
+    # though the cadence is 1000
     files = [d.get("file") for d in ET.parse(cut / "wall.pvd").getroot().iter("DataSet")]
     assert files == sorted(p.name for p in cut.glob("wall_*.vtu"))  # the collection lists exactly the files
     assert main(["resume", str(cut), "--quiet", "--no-plots"]) == 0
@@ -112,23 +137,26 @@ def test_resume_refuses_what_it_cannot_continue(tmp_path, capsys):
     out = tmp_path / "r"
     assert main(argv(out, "time.end=0.001")) == 0
     assert main(["resume", str(out)]) == 2
-    assert "no checkpoint.pkl" in capsys.readouterr().err
+    assert "no checkpoint.json" in capsys.readouterr().err
     assert main(argv(out, "time.end=0.001", extra=["--checkpoint-every", "5"])) == 0
     assert main(["resume", str(out), "--until", "0.0005"]) == 2
     assert "is not after the checkpoint's t" in capsys.readouterr().err
-    import pickle
-    good = (out / "checkpoint.pkl").read_bytes()
-    data = pickle.loads(good)
-    data["plugins"]["coupler"] = "kinematic-splitting somewhere 9.9"
-    (out / "checkpoint.pkl").write_bytes(pickle.dumps(data))
+    good = json.loads((out / "checkpoint.json").read_text())
+
+    def rewrite(change):  # a consistent checkpoint (its digest recomputed) that says something else
+        document = json.loads(json.dumps(good))
+        change(document)
+        with np.load(out / "checkpoint.npz", allow_pickle=False) as npz:
+            document["sha256"] = checkpoint.digest(document, {k: npz[k] for k in npz.files})
+        (out / "checkpoint.json").write_text(json.dumps(document))
+
+    rewrite(lambda d: d["plugins"]["dict"].update(coupler="kinematic-splitting somewhere 9.9"))
     assert main(["resume", str(out), "--until", "0.002"]) == 2
     assert "plugins differ" in capsys.readouterr().err
-    data = pickle.loads(good)
-    data["digest"] = "0" * 64  # the case no longer resolves to what the checkpoint recorded
-    (out / "checkpoint.pkl").write_bytes(pickle.dumps(data))
+    rewrite(lambda d: d.update(case_digest="0" * 64))  # the case no longer resolves to what the checkpoint recorded
     assert main(["resume", str(out)]) == 2
     assert "resolves differently" in capsys.readouterr().err
-    (out / "checkpoint.pkl").write_bytes(b"not a checkpoint")
+    (out / "checkpoint.json").write_bytes(b"not a checkpoint")
     assert main(["resume", str(out)]) == 2
     assert "cannot be read" in capsys.readouterr().err
 

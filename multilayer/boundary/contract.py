@@ -102,6 +102,24 @@ class BoundaryCondition(ABC):
         """The condition's own state at t = 0 (None: it has none)."""
         return None
 
+    def state_to_data(self, state: Any) -> Any:
+        """The condition's ``state`` as data a checkpoint can hold (numbers, arrays, strings, None, lists,
+        tuples, mappings: no objects).  By default a state that is None or a number is itself; a
+        condition with another kind of state gives its own (and :meth:`state_from_data`)."""
+        if state is None:
+            return None
+        if isinstance(state, (int, float)) and not isinstance(state, bool):  # numpy's float64 too
+            return float(state)
+        raise NotImplementedError(f"{type(self).__name__} gives no state_to_data for its state "
+                                  f"{type(state).__name__}: its runs cannot be checkpointed")
+
+    def state_from_data(self, data: Any) -> Any:
+        """The state :meth:`state_to_data` gave ``data`` for (ValueError for anything else).  By default
+        None or a number (a flow rate's end: None at rest, then its multiplier λ)."""
+        if data is None or isinstance(data, float):
+            return data
+        raise ValueError(f"{type(self).__name__}'s state should be None or a number, not {type(data).__name__}")
+
     @abstractmethod
     def traction(self, window: tuple[float, float], dt: float, scheme: Any, history: Sequence[Any]) -> EndTraction:
         """p̄ of the step as pressure + resistance · Q̄ (a ``constraint`` end: ``EndTraction(0.0)``, p̄ = λ).

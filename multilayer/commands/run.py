@@ -111,7 +111,7 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
     if not no_plots and result.steps:
         plot_folder(out, quiet=True)
     if not quiet:
-        print(progress.summary(result, time.perf_counter() - t0, out, checkpoint=(out / "checkpoint.pkl").is_file()))
+        print(progress.summary(result, time.perf_counter() - t0, out, checkpoint=checkpoint.exists(out)))
     if result.status == "interrupted":
         return INTERRUPTED
     if result.status != "ok":

@@ -137,6 +137,19 @@ class Fluid(ABC):
     def initial_state(self) -> Any:
         """The fluid at rest."""
 
+    def state_to_data(self, state: Any) -> dict[str, Any]:
+        """``state`` as data a checkpoint can hold: a mapping of arrays, numbers, strings, None, lists,
+        tuples and mappings (no objects; :func:`multilayer.runner.checkpoint.encode`).
+
+        A fluid whose states are not written as data cannot be checkpointed (the default refuses).
+        """
+        raise NotImplementedError(f"{type(self).__name__} gives no state_to_data: its runs cannot be checkpointed")
+
+    def state_from_data(self, data: Any) -> Any:
+        """The state :meth:`state_to_data` gave ``data`` for, its types and shapes checked against this
+        discretization (ValueError for anything else: a checkpoint is refused then)."""
+        raise NotImplementedError(f"{type(self).__name__} gives no state_from_data: its runs cannot be resumed")
+
     @abstractmethod
     def system(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
                times: tuple[float, float], interface: Interface | None = None) -> Any:

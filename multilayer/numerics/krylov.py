@@ -66,6 +66,27 @@ class SolutionSpan:
     def clear(self) -> None:
         self._count = 0
 
+    def held(self) -> tuple[np.ndarray, int]:
+        """(X, count): the solutions held, as the columns of the ring (their order kept), and how many were added.
+
+        What :meth:`restore` needs to give the same guesses, bit for bit (a checkpoint keeps it).
+        """
+        m = len(self)
+        X = np.empty((0, 0)) if self._X is None else self._X[:, :m].copy()
+        return X, self._count
+
+    def restore(self, X: np.ndarray, count: int) -> None:
+        """Hold again what :meth:`held` gave: the ring's columns ``X`` after ``count`` solutions added."""
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != min(count, self.size) or count < 0:
+            raise ValueError(f"a span of {self.size} solutions cannot hold {X.shape} after {count} added")
+        if count == 0:
+            self._X, self._count = None, 0
+            return
+        self._X = np.empty((X.shape[0], self.size))
+        self._X[:, : X.shape[1]] = X
+        self._count = count
+
     def add(self, x: np.ndarray) -> None:
         if self._X is None or self._X.shape[0] != x.shape[0]:
             self._X, self._count = np.empty((x.shape[0], self.size)), 0

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from multilayer.numerics.held import kept
 from multilayer.numerics.krylov import (
     GMRESResult,
     SolutionSpan,
@@ -59,15 +60,16 @@ class SolverStats:
     #: iterative-refinement sweeps after direct solves (:meth:`ReusingSolver.solve`)
     refinements: int = 0
     #: single-precision factorizations that did not serve (singular in float32, or GMRES could not converge
-    #: from them), replaced by double ones until the next checkpoint (``[solver] factors = "single"``)
+    #: from them), replaced by double ones for the rest of the run (``[solver] factors = "single"``)
     fallbacks: int = 0
     #: the price of a factorization in GMRES iterations that :class:`ReusingSolver` refactorizes at (the
     #: case's ``factorization_cost``, or :func:`factorization_cost` of the system's size); None before any
     factorization_cost: float | None = None
-    #: set by the runner after a checkpoint: the system's next solve factorizes afresh (in the configured
-    #: precision, a fallback forgotten), as the first solve of a run resumed from that checkpoint must, so the
-    #: two runs stay bit-identical
-    refactorize: bool = False
+    #: the :class:`ReusingSolver` counting here (the latest made with these stats), whose held state
+    #: (:meth:`ReusingSolver.held`) a checkpoint keeps; and the held state a resumed run hands it to take back
+    #: before its first solve, so the run goes on as if it had never stopped
+    solver: ReusingSolver | None = attrs.field(default=None, repr=False, eq=False)
+    resume: dict | None = attrs.field(default=None, repr=False, eq=False)
     #: the backend instances of this owner, by name: what a backend keeps between factorizations (PARDISO's
     #: symbolic analysis) belongs to one run's solver, never to the process, so runs sharing a worker share nothing
     backends: dict = attrs.field(factory=dict, repr=False, eq=False)
@@ -311,7 +313,7 @@ class Reuse:
         with residuals in float64 — the same tolerance, so the same answer
         to it (GMRES–IR).  Where single-precision factors of a matrix are
         too inaccurate for GMRES to converge from, that matrix is factorized
-        in double and the solver stays double until the next checkpoint
+        in double and the solver stays double for the rest of the run
         (counted in ``fallbacks``).
     factorization_cost : float or None
         What a factorization costs, in GMRES iterations: the held factors
@@ -440,26 +442,44 @@ class ReusingSolver:
         self._excess = 0.0
         self._workspace = Workspace()  # GMRES's basis, kept: no fresh pages per step
         self._single = reuse.factors == "single"  # until a fallback
+        #: the matrix the held factors are of (its data copied: a caller may refill its buffer) and their precision
+        self._factored: tuple[sp.spmatrix, bool] | None = None
+        stats.solver = self
 
     def factorize(self, A: sp.spmatrix, key=None) -> Factorized:
         """Factorize ``A`` and hold it (under ``key``, by default A) as the preconditioner of the next solves.
 
         The factors held until now are let go first: the two never live together.
         """
-        self._factors = self._matrix = None  # a large mesh's factors are most of its memory
+        self._factors = self._matrix = self._factored = None  # a large mesh's factors are most of its memory
+        single = False
         if self._single:
             try:
                 self._factors = factorize(A, self.stats, self.backend, single=True)
+                single = True
             except RuntimeError:  # singular in float32: an entry beyond its range, a pivot rounded to zero
                 self._fall_back()
         if self._factors is None:
             self._factors = factorize(A, self.stats, self.backend)
+        self._factored = (kept(A), single)
         self._matrix = A if key is None else key
         self._shape = A.shape
         self._rate, self._excess = None, 0.0
         cost = self.reuse.factorization_cost
         self.stats.factorization_cost = factorization_cost(A.shape[0]) if cost is None else cost
         return self._factors
+
+    def held(self) -> dict:
+        """What the solver holds between two steps, as data (:func:`multilayer.numerics.held.held`)."""
+        from multilayer.numerics.held import held
+
+        return held(self)
+
+    def restore(self, state: dict) -> None:
+        """Take back what :meth:`held` gave (:func:`multilayer.numerics.held.restore`)."""
+        from multilayer.numerics.held import restore
+
+        restore(self, state)
 
     def repeats(self, A: sp.spmatrix, key=None) -> bool:
         """True when ``A`` (``key`` standing for it) is the matrix solved just before: a sub-iteration's matrix,
@@ -477,10 +497,9 @@ class ReusingSolver:
         (e.g. the token of the system it is a block of); by default A itself.
         """
         key = A if key is None else key
-        if self.stats.refactorize:  # as a run resumed here starts: no factors, no earlier solutions, no fallback
-            self.stats.refactorize, self._factors, self._matrix = False, None, None
-            self._span.clear()
-            self._single = self.reuse.factors == "single"
+        if self.stats.resume is not None:  # a resumed run: the held state of the checkpoint first
+            held, self.stats.resume = self.stats.resume, None
+            self.restore(held)
         again = self.repeats(A, key)
         self._last_key, self.last = key, A
         if self.holds(key):
@@ -553,7 +572,7 @@ class ReusingSolver:
         ``REFINEMENTS`` sweeps.  Single-precision factors: GMRES on them
         (counted as a Krylov solve); where it does not converge within
         ``max_iterations`` the matrix is factorized in double precision, and
-        the solver stays double until the next checkpoint (a ``fallback``).
+        the solver stays double for the rest of the run (a ``fallback``).
         """
         if self._single:
             x = self._gmres(A, b, guess=False).x

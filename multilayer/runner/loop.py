@@ -9,7 +9,8 @@ The results folder is a contract other tools rely on:
 * ``series.csv`` — one row per step: ``t``, every ledger term, every probe;
 * ``eta_lumen.csv`` — η on the lumen line at every vertex, every step (when there is a wall);
 * ``<part>_NNNNNN.vtu`` + ``<part>.pvd`` — field snapshots for ParaView;
-* ``checkpoint.pkl`` — the whole state every ``checkpoint_every`` steps, for :func:`resume_run`.
+* ``checkpoint.json`` + ``checkpoint.npz`` — the whole state every ``checkpoint_every`` steps, as data
+  (:mod:`multilayer.runner.checkpoint`), for :func:`resume_run`.
 
 A run that fails (a non-finite value, a collapsing wall, energy beyond
 the work put in) or is interrupted (SIGINT, SIGTERM) stops cleanly and keeps
@@ -113,12 +114,13 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, c
     The coupler advances states; this loop closes the energy ledger of each
     step from the terms the coupler reports ([theory](docs/theory.md) §7),
     evaluates the probes and writes rows and snapshots; with
-    ``checkpoint_every`` > 0 it writes ``checkpoint.pkl`` every so many steps
-    and when interrupted.  ``progress(tally, row)`` is called after every
-    step.  Returns the :class:`RunResult`; the same status is in ``summary.json``.
+    ``checkpoint_every`` > 0 it writes a checkpoint (``checkpoint.json`` and
+    ``checkpoint.npz``) every so many steps and when interrupted.
+    ``progress(tally, row)`` is called after every step.  Returns the :class:`RunResult`; the same status is in ``summary.json``.
     """
     registry = registry or Registry.load()
     results = ResultsFolder(Path(out))
+    checkpoint.discard(results.path)  # an earlier run's: never to be resumed as this one's
     with blas_threads(case.threads):
         return _run(case, results, registry, None, checkpoint_every, progress)
 
@@ -140,23 +142,31 @@ def run_held(case: Case, registry: Registry | None = None, *,
 def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
                checkpoint_every: int | None = None,
                progress: Callable[[Tally, dict], None] | None = None) -> RunResult:
-    """Continue the run of the results folder ``out`` from its ``checkpoint.pkl`` (to ``until`` s if given).
+    """Continue the run of the results folder ``out`` from its checkpoint (to ``until`` s if given).
 
-    Rows and snapshots written after the checkpoint are dropped first, so a
-    run resumed from step n writes the same files as one never stopped.
+    The state and every reusing solver's held state are rebuilt from the
+    checkpoint's data; rows and snapshots written after it are dropped, so a
+    run resumed from step n writes the same files, bit for bit, as one never stopped.
     Raises :class:`checkpoint.CheckpointError` when there is no usable
-    checkpoint, or the plugins or the case differ from the checkpoint's.
+    checkpoint (before the folder is touched), or the plugins or the case
+    differ from the checkpoint's.
     """
     registry = registry or Registry.load()
     saved = checkpoint.load(Path(out), registry, until)
-    results = ResultsFolder(Path(out), fresh=False)
     every = saved.checkpoint_every if checkpoint_every is None else checkpoint_every
     with blas_threads(getattr(saved.case, "threads", 1)):
-        return _run(saved.case, results, registry, saved, every, progress)
+        try:
+            with setting_up():
+                setup, coupler = prepare(saved.case, registry)
+        except RunFailed as exc:
+            raise checkpoint.CheckpointError(f"the checkpoint's case cannot be set up here: {exc}") from None
+        state = checkpoint.restore(saved, setup, coupler)
+        results = ResultsFolder(Path(out), fresh=False)
+        return _run(saved.case, results, registry, saved, every, progress, (setup, coupler, state))
 
 
 def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, saved: checkpoint.Checkpoint | None,
-         checkpoint_every: int, progress) -> RunResult:
+         checkpoint_every: int, progress, prepared: tuple | None = None) -> RunResult:
     wall_t0 = time.perf_counter()
     status, reason, crash = "ok", "", ""
     setup: Setup | None = None
@@ -165,9 +175,12 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     resumed_from = saved.tally.steps if saved is not None else None
     try:
         with interruptible() as interrupted:
-            with setting_up():
-                setup, coupler = prepare(case, registry)
-                state = saved.state if saved is not None else coupler.initial_state(setup)
+            if prepared is not None:  # a resumed run: set up, its state rebuilt from the checkpoint
+                setup, coupler, state = prepared
+            else:
+                with setting_up():
+                    setup, coupler = prepare(case, registry)
+                    state = coupler.initial_state(setup)
             if tally is None:
                 tally = Tally.start(setup, coupler, state)
             probes = setup.probe_rows(case.output.probes)
@@ -183,9 +196,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
                     progress(tally, step.row)
                 if checkpoint_every and (step.n % checkpoint_every == 0 or interrupted()):
                     checkpoint.save(results.path, case, registry, step.state, tally, results.snapshots,
-                                    checkpoint_every, time.perf_counter() - wall_t0)
-                    for stats in _all_stats(setup):  # a resumed run has no factors: neither may this one
-                        stats.refactorize = True
+                                    checkpoint_every, time.perf_counter() - wall_t0, setup)
                 if interrupted():
                     raise Interrupted(interrupted())
     except Interrupted as exc:
@@ -220,7 +231,8 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "energy": {"max_relative_residual": tally.max_rel},
         **_iterations(tally.iterations),
         **({"resumed_from": resumed_from} if saved is not None else {}),
-        **({"checkpoint": {"every": checkpoint_every, "file": "checkpoint.pkl"}} if checkpoint_every else {}),
+        **({"checkpoint": {"every": checkpoint_every, "file": checkpoint.FILE, "arrays": checkpoint.ARRAYS}}
+           if checkpoint_every else {}),
     }
     results.write_summary(summary)
     results.release()

@@ -10,7 +10,7 @@ which the other methods act.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -132,6 +132,29 @@ class ChannelFluid(Fluid):
 
             u = ch.interpolate(on_reference)
         return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u), self.discrete.ends.initial_state())
+
+    def state_to_data(self, state: FluidState) -> dict[str, Any]:
+        """u, p, v and each end's state as its condition writes it (a checkpoint's data)."""
+        conditions = self.discrete.ends.conditions
+        return {"u": state.u, "p": state.p, "v": state.v,
+                "ends": {end: conditions[end].state_to_data(s) for end, s in state.ends.items()}}
+
+    def state_from_data(self, data: Any) -> FluidState:
+        """The :class:`FluidState` of ``data`` (:meth:`state_to_data`'s), each array's dtype and shape checked
+        against this discretization and each end's state by its condition (ValueError otherwise)."""
+        ch, conditions = self.channel, self.discrete.ends.conditions
+        if not isinstance(data, dict) or set(data) != {"u", "p", "v", "ends"}:
+            raise ValueError("the fluid's state should have the fields u, p, v, ends")
+        for name, n in (("u", ch.nu), ("p", ch.pressure.N), ("v", self.line.ndofs)):
+            a = data[name]
+            if not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.shape == (n,)):
+                raise ValueError(f"the fluid's {name} should be a float64 array of shape ({n},), not "
+                                 f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}")
+        ends = data["ends"]
+        if not isinstance(ends, dict) or set(ends) != set(conditions):
+            raise ValueError(f"the fluid's state should have the states of the ends {', '.join(conditions)}")
+        return FluidState(data["u"], data["p"], data["v"],
+                          {end: conditions[end].state_from_data(ends[end]) for end in conditions})
 
     def system(self, history, domain, scheme, dt, times, interface=None) -> FluidSystem:
         """See :meth:`multilayer_plugins.channel.step.FluidStep.system`."""
