@@ -4,6 +4,7 @@ import errno
 import json
 import os
 import signal
+import socket
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -220,7 +221,7 @@ def test_a_run_draws_its_figures_and_plot_redraws_them(tmp_path, capsys):
 
 def test_results_folder_api_keeps_its_contract(tmp_path):
     folder = ResultsFolder(tmp_path / "x")
-    assert (tmp_path / "x" / ".lock").read_text().strip() == str(os.getpid())
+    assert (tmp_path / "x" / ".lock").read_text().split() == [str(os.getpid()), socket.gethostname()]
     assert json.loads((tmp_path / "x" / "summary.json").read_text())["status"] == "running"
     folder.release()
 

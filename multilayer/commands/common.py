@@ -40,6 +40,13 @@ def run_options(p: argparse.ArgumentParser, checkpoints: bool = True) -> None:
     p.add_argument("--no-plots", action="store_true", help="do not draw the run's figures at the end")
 
 
+def force_option(p: argparse.ArgumentParser) -> None:
+    """``--force``: write into a folder a new run refuses by default (see :class:`multilayer.results.folder.ResultsFolder`)."""
+    p.add_argument("--force", action="store_true",
+                   help="write into --out even when it is the current directory, your home folder, or a non-empty "
+                        "folder that is not a results folder (the run still touches only the files it writes)")
+
+
 def executor_options(p: argparse.ArgumentParser, jobs: int | None = 1, jobs_help: str = "") -> None:
     """``--jobs`` and ``--scheduler`` of the commands that run many cases (:mod:`multilayer.campaign.executor`)."""
     p.add_argument("--jobs", type=int, default=jobs, metavar="N",

@@ -18,6 +18,7 @@ from multilayer.commands.common import (
     INVALID,
     OK,
     case_options,
+    force_option,
     plugin_options,
     run_options,
 )
@@ -34,30 +35,37 @@ class RunOptions:
     """``multilayer run``."""
 
     case: Path
-    out: Path
+    out: Path | None  #: None: ``--out ''``
     overrides: tuple[str, ...]
     checkpoint_every: int
     quiet: bool
     no_plots: bool
     registry: Registry
+    force: bool = False
 
     @classmethod
     def from_args(cls, args: argparse.Namespace, registry: Registry, command_line: str) -> RunOptions:
-        return cls(args.case, args.out, tuple(args.overrides), args.checkpoint_every, args.quiet, args.no_plots,
-                   registry)
+        out = Path(args.out) if args.out.strip() else None
+        return cls(args.case, out, tuple(args.overrides), args.checkpoint_every, args.quiet, args.no_plots,
+                   registry, args.force)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("run", help="run a case, writing results to a folder")
     case_options(p)
     plugin_options(p)
-    p.add_argument("--out", type=Path, required=True, help="results folder (created)")
+    p.add_argument("--out", required=True,
+                   help="results folder (created; a run writes, replaces and removes only its own files there)")
+    force_option(p)
     run_options(p)
     p.set_defaults(handler=run, options=RunOptions.from_args)
 
 
 def run(options: RunOptions) -> int:
     """``multilayer run``: 0 the run ended ok, 1 it failed, 2 an invalid case or option, 130 interrupted."""
+    if options.out is None:
+        print("run: --out is empty: name the results folder", file=sys.stderr)
+        return INVALID
     try:
         case = load_case(options.case, options.overrides, options.registry)
     except CaseError as exc:
@@ -67,7 +75,7 @@ def run(options: RunOptions) -> int:
               file=sys.stderr)
         return INVALID
     return run_or_resume(case, options.out, options.registry, quiet=options.quiet, no_plots=options.no_plots,
-                         checkpoint_every=options.checkpoint_every)
+                         checkpoint_every=options.checkpoint_every, force=options.force)
 
 
 def invalid_case(path: Path, error: CaseError) -> int:
@@ -78,11 +86,12 @@ def invalid_case(path: Path, error: CaseError) -> int:
 
 
 def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bool, no_plots: bool,
-                  checkpoint_every: int | None, until: float | None = None) -> int:
+                  checkpoint_every: int | None, until: float | None = None, force: bool = False) -> int:
     """``run`` (a case) or ``resume`` (``case`` None: the folder's checkpoint, to ``until``): the exit code.
 
     A progress bar while it runs (unless ``quiet``), the figures at the end
-    (unless ``no_plots``), then the summary.
+    (unless ``no_plots``), then the summary.  ``force``: a run may write into
+    a folder it refuses by default (:class:`~multilayer.results.folder.ResultsFolder`).
     """
     if out.exists() and not out.is_dir():
         print(f"--out {out} is a file, not a folder", file=sys.stderr)
@@ -92,7 +101,8 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
     try:  # loop.run_case, progress.ProgressBar: looked up at each run (tests replace them)
         if case is not None:
             bar = progress.ProgressBar(case.time.steps, case.time.end, enabled=None if not quiet else False)
-            result = loop.run_case(case, out, registry, checkpoint_every=checkpoint_every, progress=bar)
+            result = loop.run_case(case, out, registry, checkpoint_every=checkpoint_every, progress=bar,
+                                   **({"force": True} if force else {}))
         else:
             saved = checkpoint.load(out, registry, until)
             bar = progress.ProgressBar(saved.case.time.steps, saved.case.time.end, saved.tally.steps,

@@ -4,6 +4,11 @@
 * ``probes.png`` — every probe against time, one panel per quantity, each axis with its unit;
 * ``energy.png`` — the energy ledger: stored energy, cumulative work and
   dissipation, and the relative residual of every step.
+
+A figure replaces only a file the run owns (its folder's manifest lists it,
+:func:`multilayer.results.folder.may_write`); a file of that name the run did
+not write is kept, and the figure not drawn.  Every PNG is written to a
+fresh temporary and renamed into place: a symbolic link is never followed.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from multilayer.results.folder import atomic_file, may_write
 from multilayer.results.reading import lumen_eta, read_run
 
 #: what each probe quantity is, and its unit (CGS)
@@ -31,19 +37,23 @@ QUANTITIES = {
 
 
 def plot_run(folder: Path | str) -> list[Path]:
-    """Write the run's figures into ``folder``; returns their paths (those that could be made)."""
+    """Write the run's figures into ``folder``; returns their paths (those that could be made).
+
+    A figure whose file is in the folder but not the run's (:func:`~multilayer.results.folder.may_write`)
+    is not drawn: that file is kept.
+    """
     folder = Path(folder)
     run = read_run(folder.name, folder)
     written = []
     radius = (run.case.get("geometry") or {}).get("radius")
-    field = lumen_eta(folder, radius) if radius is not None else None
+    field = lumen_eta(folder, radius) if radius is not None and may_write(folder, "eta_spacetime.png") else None
     if field is not None:
         plot_spacetime({run.case.get("title", folder.name)[:60] or folder.name: field}, folder / "eta_spacetime.png")
         written.append(folder / "eta_spacetime.png")
-    if run.probes and len(run.t):
+    if run.probes and len(run.t) and may_write(folder, "probes.png"):
         plot_probes(run, folder / "probes.png")
         written.append(folder / "probes.png")
-    if "energy.total" in run.series and len(run.t):
+    if "energy.total" in run.series and len(run.t) and may_write(folder, "energy.png"):
         plot_energy(run, folder / "energy.png")
         written.append(folder / "energy.png")
     return written
@@ -108,9 +118,10 @@ def _edges(x: np.ndarray) -> tuple[float, float]:
 
 
 def save_figure(fig: Figure, path: Path) -> None:
-    """Draw ``fig`` on an Agg canvas and write it to ``path`` (100 dpi)."""
+    """Draw ``fig`` on an Agg canvas and write it to ``path`` (100 dpi; a new file renamed over ``path``)."""
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=100)
+    with atomic_file(path) as f:
+        fig.savefig(f, dpi=100, format=Path(path).suffix.lstrip(".").lower() or "png")
 
 
 def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray] | None], path: Path) -> None:

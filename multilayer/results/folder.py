@@ -7,24 +7,62 @@ overwrites only the closing tags, so a snapshot costs the same however many
 came before), and ``summary.json`` has its room reserved on disk when the
 run starts, so it is written even when the disk fills up.
 
-A folder is held by one run at a time (``.lock`` with the run's PID) and is
-checked to be writable before any work starts.
+A folder owns only what it wrote.  ``manifest.json`` lists every file the
+run owns: its files of fixed names (:data:`FIXED`, claimed when it starts,
+written or not) and each snapshot (added before it is written).  A new run
+into the folder deletes the files of the previous manifest and nothing
+else; a resume drops only the manifest's snapshots after its checkpoint.
+A file the run would write that the manifest does not list (a user's
+``energy.png``) stops the run before anything is touched.  No file is opened
+through a symbolic link (``O_NOFOLLOW``), and every file rewritten whole is
+written to a fresh ``.<name>.<8 hex>.tmp`` (``O_CREAT | O_EXCL``) and renamed
+over the old one.
+
+A folder is held by one run at a time: ``.lock``, an exclusive
+``flock`` with the holder's PID and host in it.  The lock goes away with its
+process, so the lock file of a run that died is taken over; a live holder
+makes the run refuse, naming its PID.  A new run (``fresh``) refuses a
+dangerous folder unless ``force``: the current directory, ``/``, the home
+folder, and a non-empty folder that is not a results folder of multilayer.
 """
 
 from __future__ import annotations
 
 import csv
 import errno
+import fcntl
+import io
 import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+import re
+import secrets
+import socket
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
+
+#: the list of the files a run owns
+MANIFEST = "manifest.json"
+#: what ``manifest.json`` says it is
+FORMAT = "multilayer results folder"
+#: the lock of the folder (``flock``; the holder's PID and host in it)
+LOCK = ".lock"
+#: the figures of a run (:mod:`multilayer.results.figures`)
+FIGURES = ("eta_spacetime.png", "probes.png", "energy.png")
+#: the files of fixed names a run may write: all claimed in the manifest when it starts
+FIXED = ("summary.json", "series.csv", "eta_lumen.csv", "checkpoint.json", "checkpoint.npz",
+         "wall.pvd", "fluid.pvd", *FIGURES)
+#: a temporary of this module: ``.<name>.<8 hex digits>.tmp``
+_TEMP = re.compile(r"\.(.+)\.[0-9a-f]{8}\.tmp")
+_SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
+_NOFOLLOW = os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0)
 
 
 def _cell(value: Any) -> Any:
@@ -34,7 +72,65 @@ def _cell(value: Any) -> Any:
 
 
 class ResultsError(Exception):
-    """The results folder cannot be used (not writable, held by another run); the message says why."""
+    """The results folder cannot be used (not writable, held by another run, not ours); the message says why."""
+
+
+# -- files that are never opened through a link --------------------------------------------------------------
+def _open(path: Path, flags: int, mode: str) -> IO:
+    """``open`` of ``path`` that refuses a symbolic link (``O_NOFOLLOW``)."""
+    try:
+        fd = os.open(path, flags | _NOFOLLOW, 0o666)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise ResultsError(f"{path} is a symbolic link: not followed, not written") from None
+        raise
+    return os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {}))
+
+
+def _new_temp(path: Path) -> tuple[int, Path]:
+    """A new, empty ``.<name>.<8 hex>.tmp`` next to ``path`` (``O_CREAT | O_EXCL``: never an existing file)."""
+    for _ in range(100):
+        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        try:
+            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666), tmp
+        except FileExistsError:
+            continue
+    raise ResultsError(f"no free temporary name next to {path}")
+
+
+@contextmanager
+def atomic_file(path: Path | str, mode: str = "wb") -> Iterator[IO]:
+    """A new file that replaces ``path`` when the block ends without an error (none is left otherwise).
+
+    The file is a fresh temporary (``O_CREAT | O_EXCL``), renamed over
+    ``path``: a symbolic link at ``path`` is replaced, never followed.
+    """
+    path = Path(path)
+    fd, tmp = _new_temp(path)
+    try:
+        with os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})) as f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    with atomic_file(path, "w") as f:
+        f.write(text)
+
+
+def _write_with(path: Path, write: Callable[[Path], None]) -> None:
+    """``write(name)`` a file by its name (a library that opens it itself), atomically as :func:`atomic_file`."""
+    fd, tmp = _new_temp(path)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 class SeriesWriter:
@@ -48,28 +144,32 @@ class SeriesWriter:
         self.path = path
         self.columns = list(columns)
         self._known = frozenset(self.columns)
-        if keep_until is not None and path.is_file():
+        if keep_until is not None and path.is_file() and not path.is_symlink():
             self._cut(keep_until)
             return
-        with open(self.path, "w", newline="") as f:
-            csv.writer(f).writerow(self.columns)
+        _write_atomically(self.path, _csv([self.columns]))
 
     def _cut(self, step: int) -> None:
-        with open(self.path, newline="") as f:
+        with _open(self.path, os.O_RDONLY, "r") as f:
             rows = list(csv.reader(f))
         if not rows or rows[0] != self.columns:
             raise ResultsError(f"{self.path} does not have the columns of this run: cannot resume into it")
         kept = [r for r in rows[1:] if r and int(float(r[0])) <= step]
-        with open(self.path, "w", newline="") as f:
-            csv.writer(f).writerows([rows[0], *kept])
+        _write_atomically(self.path, _csv([rows[0], *kept]))
 
     def append(self, row: Mapping[str, Any]) -> None:
         """Write one row; a column the row lacks is left empty, an unknown key is an error."""
         unknown = row.keys() - self._known
         if unknown:
             raise KeyError(f"not columns of {self.path.name}: {sorted(unknown)}")
-        with open(self.path, "a", newline="") as f:
-            csv.writer(f).writerow([_cell(row.get(c, "")) for c in self.columns])
+        with _open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, "a") as f:
+            f.write(_csv([[_cell(row.get(c, "")) for c in self.columns]]))
+
+
+def _csv(rows: Iterable[Sequence[Any]]) -> str:
+    text = io.StringIO(newline="")
+    csv.writer(text).writerows(rows)
+    return text.getvalue()
 
 
 def _jsonable(value: Any) -> Any:
@@ -84,14 +184,83 @@ def _jsonable(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON serializable")
 
 
-def _write_atomically(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+# -- what a folder owns ----------------------------------------------------------------------------------------
+def owned_files(folder: Path | str) -> frozenset[str] | None:
+    """The names of the files a run of multilayer owns in ``folder``; None when it is not a results folder.
+
+    From ``manifest.json``; a folder of a multilayer without manifests (its
+    ``summary.json`` says it is ours) owns the files of fixed names and the
+    snapshots of :attr:`ResultsFolder.PARTS`, as that version wrote them.
+    """
+    folder = Path(folder)
+    try:
+        with _open(folder / MANIFEST, os.O_RDONLY, "r") as f:
+            manifest = json.load(f)
+    except (OSError, ValueError, ResultsError):
+        manifest = None
+    if isinstance(manifest, dict) and manifest.get("format") == FORMAT and isinstance(manifest.get("files"), list):
+        return frozenset(str(name) for name in manifest["files"]) | {MANIFEST}
+    if manifest is not None or (folder / MANIFEST).is_symlink():
+        return None  # someone else's manifest.json
+    try:
+        with _open(folder / "summary.json", os.O_RDONLY, "r") as f:
+            summary = json.load(f)
+    except (OSError, ValueError, ResultsError):
+        return None
+    if not isinstance(summary, dict) or not ({"case_hash", "multilayer_version"} & summary.keys()
+                                             or summary.keys() == {"status", "pid"}):
+        return None
+    snapshots = {name for name in _names(folder) if (m := _SNAPSHOT.fullmatch(name))
+                 and m[1] in ResultsFolder.PARTS}
+    return frozenset({*FIXED, *snapshots})
+
+
+def may_write(folder: Path | str, name: str) -> bool:
+    """True when writing ``folder/name`` clobbers nothing of anyone else: it is the folder's own, or new."""
+    folder = Path(folder)
+    return not os.path.lexists(folder / name) or name in (owned_files(folder) or ())
+
+
+def _names(folder: Path) -> list[str]:
+    try:
+        return os.listdir(folder)
+    except FileNotFoundError:
+        return []
+
+
+def _is_ours_in_passing(name: str) -> bool:
+    """The lock and this module's temporaries of fixed names: what another run's start leaves in an empty folder."""
+    m = _TEMP.fullmatch(name)
+    return name == LOCK or (m is not None and m[1] in (MANIFEST, *FIXED))
+
+
+def _dangerous(path: Path) -> str:
+    """Why ``path`` must not be a new run's results folder (without ``--force``), or ''."""
+    resolved = path.resolve()
+    if resolved == Path.cwd().resolve():
+        return "is the current directory"
+    if resolved == Path(resolved.anchor):
+        return "is the root of the file system"
+    try:
+        if resolved == Path.home().resolve():
+            return "is your home folder"
+    except RuntimeError:  # no home
+        pass
+    return ""
+
+
+def _foreign(path: Path) -> bool:
+    """True when ``path`` holds files but no results of multilayer."""
+    # listed first: a run starting here writes its manifest before any other file
+    return any(not _is_ours_in_passing(n) for n in _names(path)) and owned_files(path) is None
 
 
 class ResultsFolder:
     """The output folder of one run.
+
+    ``fresh`` (a new run): the files of the previous run here are deleted;
+    otherwise (a resume) they are kept.  A new run refuses a dangerous
+    folder (see the module) unless ``force``.
 
     Examples
     --------
@@ -101,6 +270,7 @@ class ResultsFolder:
     >>> series.append({"step": 1, "t": 1e-4})
     >>> (out.path / "series.csv").read_text().splitlines()
     ['step,t', '1,0.0001']
+    >>> out.release()
     """
 
     #: the parts a run writes snapshots of
@@ -108,71 +278,164 @@ class ResultsFolder:
     #: bytes kept on disk for summary.json from the start of a run
     RESERVE = 1 << 16
 
-    def __init__(self, out: Path | str, fresh: bool = True):
+    def __init__(self, out: Path | str, fresh: bool = True, force: bool = False):
+        self._lock_fd: int | None = None
+        self._owned: set[str] = set()
+        self._snapshots: dict[str, list[tuple[float, str]]] = {}
+        if isinstance(out, str) and not out.strip():
+            raise ResultsError("--out is empty: name the results folder")
         self.path = Path(out)
+        if fresh and not force and (why := _dangerous(self.path)):
+            raise ResultsError(f"--out {out} {why}: choose a folder of its own (or --force)")
         if self.path.exists() and not self.path.is_dir():
             raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
+        if fresh and not force and self.path.is_dir() and _foreign(self.path):
+            raise ResultsError(_not_ours(self.path))
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ResultsError(f"cannot create the results folder {self.path}: {exc.strerror or exc}") from None
-        self._lock()
-        if fresh:
-            self._clear_previous_run()
-        self._reserve_summary()
-        self._snapshots: dict[str, list[tuple[float, str]]] = {}
+        self._hold()
+        try:
+            self._take_over(fresh, force)
+            self._reserve_summary()
+        except BaseException:
+            self.release()
+            raise
 
     # -- holding the folder ---------------------------------------------------
-    def _lock(self) -> None:
-        """Take ``.lock`` (our PID); refuse a folder a live run holds, take over a dead run's."""
-        lock = self.path / ".lock"
-        try:
-            other = int(lock.read_text().strip() or 0)
-        except (FileNotFoundError, ValueError):
-            other = 0
-        if other and other != os.getpid() and _alive(other):
-            raise ResultsError(f"{self.path} is in use by another run (PID {other}); choose another --out, "
-                               f"or remove {lock} if that process is gone")
-        try:
-            lock.write_text(f"{os.getpid()}\n")
-        except OSError as exc:
-            raise ResultsError(f"the results folder {self.path} is not writable: {exc.strerror or exc}") from None
-        self._lock_path = lock
+    def _hold(self) -> None:
+        """Take ``.lock`` (``flock``, our PID and host in it); refuse a folder a live run holds."""
+        lock = self.path / LOCK
+        for _ in range(1000):
+            try:
+                fd = os.open(lock, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
+            except OSError as exc:
+                if exc.errno == errno.ELOOP:
+                    raise ResultsError(f"{lock} is a symbolic link, not a lock of multilayer: remove it") from None
+                raise ResultsError(f"the results folder {self.path} is not writable: {exc.strerror or exc}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                holder = _holder(fd) if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES) else ""
+                os.close(fd)
+                if holder is None:
+                    continue  # the holder released it meanwhile: try again
+                raise ResultsError(f"{self.path} is in use by another run ({holder or exc.strerror}); "
+                                   f"choose another --out") from None
+            try:  # a releasing run unlinks the lock before unlocking it: ours must be the one in the folder
+                same = os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False))
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
+                continue
+            recorded = os.pread(fd, 256, 0).decode(errors="replace").split()
+            if _live_elsewhere(recorded):  # a lock file of a run that took it without flock
+                os.close(fd)
+                raise ResultsError(f"{self.path} is in use by another run (PID {recorded[0]}); choose another "
+                                   f"--out, or remove {lock} if that process is not a run")
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()} {socket.gethostname()}\n".encode(), 0)
+            self._lock_fd = fd
+            return
+        raise ResultsError(f"could not take {lock}: it keeps changing")
 
     def release(self) -> None:
-        """Give the folder up (the run is over)."""
-        lock = getattr(self, "_lock_path", None)
-        if lock is not None:
-            lock.unlink(missing_ok=True)
-            self._lock_path = None
+        """Give the folder up (the run is over): ``.lock`` is removed."""
+        fd, self._lock_fd = getattr(self, "_lock_fd", None), None
+        if fd is None:
+            return
+        lock = self.path / LOCK
+        try:
+            if os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False)):
+                lock.unlink()
+        except OSError:
+            pass
+        os.close(fd)  # unlocks
+
+    def __del__(self) -> None:
+        try:
+            self.release()
+        except Exception:  # the interpreter is shutting down
+            pass
+
+    # -- what the folder owns -----------------------------------------------------
+    def _take_over(self, fresh: bool, force: bool) -> None:
+        previous = owned_files(self.path)
+        if previous is None and (not fresh or (not force and _foreign(self.path))):
+            raise ResultsError(_not_ours(self.path) if fresh else
+                               f"{self.path} is not a results folder of multilayer (no {MANIFEST}): cannot resume")
+        previous = set(previous or ())
+        names = _names(self.path)
+        wanted = {MANIFEST, *FIXED} | {n for n in names if (m := _SNAPSHOT.fullmatch(n)) and m[1] in self.PARTS}
+        clash = sorted(n for n in names if n in wanted and n not in previous)
+        if clash:
+            raise ResultsError(f"{self.path} holds {', '.join(clash[:3])}{' …' if len(clash) > 3 else ''} that no "
+                               f"run of multilayer wrote there: move it away or choose another --out")
+        for name in names:  # temporaries a run killed while writing left behind
+            if (m := _TEMP.fullmatch(name)) and m[1] in previous | {MANIFEST, *FIXED}:
+                self._remove(name)
+        if fresh:
+            for name in sorted(previous - {MANIFEST}):
+                self._remove(name)
+            previous = set()
+        self._owned = previous | set(FIXED)
+        self._write_manifest()
+
+    def _remove(self, name: str) -> None:
+        try:
+            (self.path / name).unlink()
+        except FileNotFoundError:
+            pass
+        except IsADirectoryError:
+            raise ResultsError(f"{self.path / name} is a folder: not a file of the run, not removed") from None
+        except OSError as exc:
+            raise ResultsError(f"cannot remove {self.path / name}: {exc.strerror or exc}") from None
+
+    def _write_manifest(self) -> None:
+        manifest = {"format": FORMAT, "about": "the files a run of multilayer owns here: only these are "
+                    "ever deleted or overwritten", "files": sorted(self._owned - {MANIFEST})}
+        try:
+            _write_atomically(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
+        except OSError as exc:
+            raise ResultsError(f"cannot write in the results folder {self.path}: {exc.strerror or exc}") from None
+
+    def claim(self, name: str) -> Path:
+        """Own ``name`` (listed in the manifest before it is written); refuse a file of that name not ours."""
+        if name not in self._owned:
+            if os.path.lexists(self.path / name):
+                raise ResultsError(f"{self.path / name} was not written by this run: not overwritten")
+            self._owned.add(name)
+            self._write_manifest()
+        return self.path / name
+
+    @property
+    def owned(self) -> frozenset[str]:
+        """The names the manifest lists (the manifest itself included)."""
+        return frozenset(self._owned | {MANIFEST})
 
     def _reserve_summary(self) -> None:
-        path = self.path / "summary.json"
+        path = self.claim("summary.json")
         placeholder = json.dumps({"status": "running", "pid": os.getpid()})
         try:
-            with open(path, "w") as f:
+            with _open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, "w") as f:
                 f.write(placeholder + " " * (self.RESERVE - len(placeholder) - 1) + "\n")
         except OSError as exc:
             raise ResultsError(f"cannot write in the results folder {self.path}: {exc.strerror or exc}") from None
 
-    def _clear_previous_run(self) -> None:
-        """Remove what an earlier run wrote here, so no stale row or snapshot survives this one."""
-        stale = [self.path / name for name in ("series.csv", "summary.json", "checkpoint.pkl", "eta_lumen.csv")]
-        for part in self.PARTS:
-            stale += [self.path / f"{part}.pvd", *self.path.glob(f"{part}_[0-9][0-9][0-9][0-9][0-9][0-9].vtu")]
-        stale += list(self.path.glob("*.png"))
-        for path in stale:
-            path.unlink(missing_ok=True)
-
     def keep_until(self, step: int, snapshots: Mapping[str, Sequence[tuple[float, str]]]) -> None:
         """Resuming after ``step``: drop the snapshots written later, restore the collections."""
-        for part in self.PARTS:
-            for path in self.path.glob(f"{part}_[0-9][0-9][0-9][0-9][0-9][0-9].vtu"):
-                if int(path.stem.rsplit("_", 1)[1]) > step:
-                    path.unlink()
+        later = [name for name in self._owned if (m := _SNAPSHOT.fullmatch(name)) and m[1] in self.PARTS
+                 and int(m[2]) > step]
+        for name in later:
+            self._remove(name)
+        if later:
+            self._owned -= set(later)
+            self._write_manifest()
         for name, entries in snapshots.items():
             self._snapshots[name] = [(float(t), file) for t, file in entries]
-            _write_atomically(self.path / f"{name}.pvd", _pvd(self._snapshots[name]))
+            _write_atomically(self.claim(f"{name}.pvd"), _pvd(self._snapshots[name]))
 
     @property
     def snapshots(self) -> dict[str, list[tuple[float, str]]]:
@@ -181,7 +444,7 @@ class ResultsFolder:
 
     def series(self, columns: Sequence[str], name: str = "series.csv", keep_until: int | None = None) -> SeriesWriter:
         """A writer of ``series.csv`` (or ``name``) with these columns (see :class:`SeriesWriter`)."""
-        return SeriesWriter(self.path / name, columns, keep_until)
+        return SeriesWriter(self.claim(name), columns, keep_until)
 
     def snapshot(
         self,
@@ -207,35 +470,58 @@ class ResultsFolder:
                 values = np.column_stack([values, np.zeros(len(values))])
             data[key] = values
         file = f"{name}_{step:06d}.vtu"
-        meshio.write(self.path / file, meshio.Mesh(points, dict(cells), point_data=data))
+        collection = self.claim(f"{name}.pvd")
+        mesh = meshio.Mesh(points, dict(cells), point_data=data)
+        _write_with(self.claim(file), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
         entries = self._snapshots.setdefault(name, [])
         entries.append((float(t), file))
-        _append_to_collection(self.path / f"{name}.pvd", entries)
+        _append_to_collection(collection, entries)
         return self.path / file
 
     def write_json(self, name: str, data: Mapping[str, Any]) -> Path:
         """Write ``name`` as indented JSON (numpy scalars and arrays converted)."""
-        path = self.path / name
+        path = self.claim(name)
         _write_atomically(path, json.dumps(data, indent=2, default=_jsonable, allow_nan=True) + "\n")
         return path
 
     def write_summary(self, summary: Mapping[str, Any]) -> Path:
         """Write ``summary.json``: atomically, or into the room reserved at the start when the disk is full."""
         text = json.dumps(summary, indent=2, default=_jsonable, allow_nan=True) + "\n"
-        path = self.path / "summary.json"
+        path = self.claim("summary.json")
         try:
             _write_atomically(path, text)
         except OSError as exc:
             if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
                 raise
-            (path.with_name(path.name + ".tmp")).unlink(missing_ok=True)
             compact = json.dumps(summary, default=_jsonable, allow_nan=True)
             if len(compact.encode()) >= self.RESERVE:  # keep what matters
                 compact = json.dumps({k: summary[k] for k in ("status", "reason", "steps") if k in summary})
-            with open(path, "r+") as f:  # the reserved blocks: no new space needed
+            with _open(path, os.O_RDWR, "r+") as f:  # the reserved blocks: no new space needed
                 f.write(compact)
                 f.truncate()
         return path
+
+
+def _not_ours(path: Path) -> str:
+    return (f"--out {path} is not empty and not a results folder of multilayer (no {MANIFEST}): choose another "
+            f"--out, or --force to write into it (the run touches only its own files)")
+
+
+def _holder(fd: int) -> str | None:
+    """Who holds the lock ``fd`` is open on: 'PID n on host h'; None when nobody does any more."""
+    for _ in range(50):
+        text = os.pread(fd, 256, 0).decode(errors="replace").split()
+        if text:
+            pid = text[0]
+            host = text[1] if len(text) > 1 else ""
+            return f"PID {pid}" + (f" on {host}" if host and host != socket.gethostname() else "")
+        try:  # not written yet, or the holder is gone
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            time.sleep(0.002)
+            continue
+        return None
+    return "PID unknown"
 
 
 _PVD_HEAD = '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n  <Collection>\n'
@@ -254,12 +540,22 @@ def _pvd(entries: Sequence[tuple[float, str]]) -> str:
 
 def _append_to_collection(path: Path, entries: Sequence[tuple[float, str]]) -> None:
     """Add the last entry to the collection at ``path``: overwrite the closing tags only (O(1))."""
-    if len(entries) == 1 or not path.is_file():
+    if len(entries) == 1 or not path.is_file() or path.is_symlink():
         _write_atomically(path, _pvd(entries))
         return
-    with open(path, "r+b") as f:
+    with _open(path, os.O_RDWR, "r+b") as f:
         f.seek(-len(_PVD_TAIL.encode()), os.SEEK_END)
         f.write((_dataset(*entries[-1]) + _PVD_TAIL).encode())
+
+
+def _live_elsewhere(recorded: Sequence[str]) -> bool:
+    """True when a lock's text (``PID [host]``) names a live process of this host other than us."""
+    try:
+        pid = int(recorded[0]) if recorded else 0
+    except ValueError:
+        return False
+    host = recorded[1] if len(recorded) > 1 else socket.gethostname()
+    return pid > 0 and pid != os.getpid() and host == socket.gethostname() and _alive(pid)
 
 
 def _alive(pid: int) -> bool:
@@ -275,7 +571,8 @@ def _alive(pid: int) -> bool:
 def holds_finished_run(folder: Path, digest: str) -> bool:
     """True when ``folder`` holds a run of the case with ``digest`` that ended ok (its ``summary.json`` says so)."""
     try:
-        summary = json.loads((Path(folder) / "summary.json").read_text())
-    except (OSError, ValueError):
+        with _open(Path(folder) / "summary.json", os.O_RDONLY, "r") as f:
+            summary = json.load(f)
+    except (OSError, ValueError, ResultsError):
         return False
     return summary.get("status") == "ok" and summary.get("case_hash") == digest

@@ -46,6 +46,7 @@ from multilayer.case.casefile import validate_data
 from multilayer.case.model import Case
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, plugin_versions
+from multilayer.results.folder import atomic_file
 from multilayer.scene.state import State, WallState
 from multilayer.version import __version__
 
@@ -266,15 +267,6 @@ def _without_end(resolved: Mapping[str, Any]) -> dict[str, Any]:
     return {**resolved, "time": {k: v for k, v in resolved["time"].items() if k != "end"}}
 
 
-def _write(path: Path, write) -> Path:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        write(f)
-        f.flush()
-        os.fsync(f.fileno())
-    return tmp
-
-
 def save(folder: Path, case: Case, registry: Registry, state: State, tally: Any,
          snapshots: Mapping[str, list], every: int, wall_time_s: float, setup: Any) -> Path:
     """Write ``checkpoint.npz`` and ``checkpoint.json`` (each written whole before it replaces the previous one).
@@ -298,18 +290,17 @@ def save(folder: Path, case: Case, registry: Registry, state: State, tally: Any,
         "solvers": encode([[name, held] for name, held in solvers if held is not None], arrays),
     }
     document["sha256"] = digest(document, arrays)
-    npz = _write(folder / ARRAYS, lambda f: np.savez(f, **arrays))
-    js = _write(folder / FILE, lambda f: f.write(json.dumps(document, indent=1, ensure_ascii=True,
-                                                            allow_nan=False).encode("ascii")))
-    os.replace(npz, folder / ARRAYS)
-    os.replace(js, folder / FILE)
+    # each written whole to a fresh temporary and renamed into place (never through a symbolic link); a crash
+    # between the two leaves a pair whose digest does not match, which resume refuses
+    with atomic_file(folder / ARRAYS) as f:
+        np.savez(f, **arrays)
+        f.flush()
+        os.fsync(f.fileno())
+    with atomic_file(folder / FILE) as f:
+        f.write(json.dumps(document, indent=1, ensure_ascii=True, allow_nan=False).encode("ascii"))
+        f.flush()
+        os.fsync(f.fileno())
     return folder / FILE
-
-
-def discard(folder: Path) -> None:
-    """Remove a checkpoint of an earlier run from ``folder`` (a fresh run starts there)."""
-    for name in (FILE, ARRAYS, FILE + ".tmp", ARRAYS + ".tmp"):
-        (folder / name).unlink(missing_ok=True)
 
 
 def exists(folder: Path) -> bool:

@@ -108,7 +108,7 @@ def interruptible() -> Iterator[Callable[[], str | None]]:
 
 
 def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, checkpoint_every: int = 0,
-             progress: Callable[[Tally, dict], None] | None = None) -> RunResult:
+             progress: Callable[[Tally, dict], None] | None = None, force: bool = False) -> RunResult:
     """Run ``case`` and write its results folder ``out``.
 
     The coupler advances states; this loop closes the energy ledger of each
@@ -116,11 +116,12 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, c
     evaluates the probes and writes rows and snapshots; with
     ``checkpoint_every`` > 0 it writes a checkpoint (``checkpoint.json`` and
     ``checkpoint.npz``) every so many steps and when interrupted.
-    ``progress(tally, row)`` is called after every step.  Returns the :class:`RunResult`; the same status is in ``summary.json``.
+    ``progress(tally, row)`` is called after every step.  Returns the :class:`RunResult`; the same status is
+    in ``summary.json``.  ``force``: ``out`` may be a folder :class:`ResultsFolder` refuses by default; an
+    earlier run's files there (its checkpoint included) are removed first, nothing else.
     """
     registry = registry or Registry.load()
-    results = ResultsFolder(Path(out))
-    checkpoint.discard(results.path)  # an earlier run's: never to be resumed as this one's
+    results = ResultsFolder(out, force=force)
     with blas_threads(case.threads):
         return _run(case, results, registry, None, checkpoint_every, progress)
 

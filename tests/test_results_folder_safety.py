@@ -1,0 +1,276 @@
+"""Issue 21: a results folder owns only what it wrote (its manifest), refuses a dangerous --out, and is
+held by one run at a time (an atomic lock)."""
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from multilayer.commands.main import main
+from multilayer.results.folder import MANIFEST, ResultsError, ResultsFolder, owned_files
+
+CASES = Path(__file__).parents[1] / "cases"
+SMALL = ["mesh.nz=12", "mesh.nr=3", "output.every=5", "time.end=0.001"]
+
+
+def argv(out, *extra, plots=False, sets=()):
+    a = ["run", str(CASES / "pulse-koiter-thick.toml"), "--out", str(out), "--quiet", *extra]
+    if not plots:
+        a.append("--no-plots")
+    for s in (*SMALL, *sets):
+        a += ["--set", s]
+    return a
+
+
+def user_files(folder: Path) -> dict[str, bytes]:
+    """A user's own files: a text file, a PNG, a sub-folder with a file."""
+    folder.mkdir(parents=True, exist_ok=True)
+    files = {"notes.txt": b"my notes\n", "my.png": b"\x89PNG\r\n\x1a\nnot drawn by multilayer",
+             "old_wall_000001.vtu": b"a user's, not a snapshot name of a run", "sub/keep.csv": b"a,b\n1,2\n"}
+    for name, data in files.items():
+        (folder / name).parent.mkdir(exist_ok=True)
+        (folder / name).write_bytes(data)
+    return files
+
+
+def unchanged(folder: Path, files: dict[str, bytes]) -> bool:
+    return all((folder / name).read_bytes() == data for name, data in files.items())
+
+
+# -- the manifest ---------------------------------------------------------------------------------------------
+def test_a_users_files_survive_a_forced_run_a_rerun_and_a_resume(tmp_path, capsys):
+    out = tmp_path / "mine"
+    files = user_files(out)
+    assert main(argv(out)) == 2  # not a results folder: refused without --force
+    assert "not a results folder of multilayer" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["my.png", "notes.txt", "old_wall_000001.vtu", "sub"]
+    assert main(argv(out, "--force", plots=True)) == 0  # the figures drawn, my.png kept
+    assert unchanged(out, files)
+    assert (out / "energy.png").stat().st_size > 1000
+    owned = owned_files(out)
+    assert {"summary.json", "series.csv", "energy.png", "wall_000010.vtu", MANIFEST} <= owned
+    assert not owned & set(files)
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["format"] == "multilayer results folder" and "wall_000005.vtu" in manifest["files"]
+    # now a results folder of ours: a new run needs no --force, replaces its own files and keeps the user's
+    assert main(argv(out, "--checkpoint-every", "5", sets=["time.end=0.0015"], plots=True)) == 0
+    assert unchanged(out, files)
+    assert (out / "wall_000015.vtu").is_file()
+    assert main(["resume", str(out), "--until", "0.002", "--quiet"]) == 0
+    assert unchanged(out, files)
+    assert json.loads((out / "summary.json").read_text())["steps"] == 20
+    # a shorter run removes the snapshots of the longer one: they were its own
+    assert main(argv(out)) == 0
+    assert not (out / "wall_000015.vtu").exists() and (out / "wall_000010.vtu").is_file()
+    assert not (out / "checkpoint.json").exists() and not (out / "checkpoint.npz").exists()
+    assert unchanged(out, files)
+    assert sorted(p.name for p in out.iterdir() if p.name in files or p.name == "sub") == sorted(
+        ["my.png", "notes.txt", "old_wall_000001.vtu", "sub"])
+
+
+def test_a_resume_drops_only_its_own_later_snapshots(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(argv(out, "--checkpoint-every", "10", sets=["time.end=0.0015"])) == 0  # checkpoint at step 10
+    assert (out / "wall_000015.vtu").is_file()
+    files = user_files(out)
+    (out / "wall_000099.vtu").write_bytes(b"a user's file with a snapshot's name")  # not in the manifest
+    assert main(["resume", str(out), "--until", "0.0012", "--quiet", "--no-plots"]) == 2  # refused, untouched
+    assert "wall_000099.vtu" in capsys.readouterr().err
+    assert (out / "wall_000015.vtu").is_file()
+    (out / "wall_000099.vtu").unlink()
+    assert main(["resume", str(out), "--until", "0.0012", "--quiet", "--no-plots"]) == 0
+    assert not (out / "wall_000015.vtu").exists()  # the run's own, after its checkpoint: dropped
+    assert "wall_000015.vtu" not in owned_files(out)
+    assert unchanged(out, files)
+
+
+def test_a_file_of_a_name_the_run_writes_that_it_did_not_write_stops_it_first(tmp_path, capsys):
+    out = tmp_path / "clash"
+    files = user_files(out)
+    (out / "energy.png").write_bytes(b"my energy plot")
+    assert main(argv(out, "--force")) == 2
+    assert "energy.png" in capsys.readouterr().err
+    assert (out / "energy.png").read_bytes() == b"my energy plot" and unchanged(out, files)
+    assert not (out / MANIFEST).exists() and not (out / ".lock").exists()
+    (out / "energy.png").unlink()
+    (out / MANIFEST).write_text('{"someone": "else"}')  # a manifest.json that is not ours
+    assert main(argv(out, "--force")) == 2
+    assert (out / MANIFEST).read_text() == '{"someone": "else"}'
+
+
+def test_plot_keeps_a_figure_file_the_run_did_not_write(tmp_path):
+    out = tmp_path / "p"
+    assert main(argv(out)) == 0
+    manifest = json.loads((out / MANIFEST).read_text())
+    manifest["files"].remove("probes.png")  # as if a user had put their own probes.png there
+    (out / MANIFEST).write_text(json.dumps(manifest))
+    (out / "probes.png").write_bytes(b"mine")
+    assert main(["plot", str(out)]) == 0
+    assert (out / "probes.png").read_bytes() == b"mine"
+    assert (out / "energy.png").stat().st_size > 1000
+
+
+def test_a_results_folder_of_an_older_multilayer_is_reused(tmp_path):
+    out = tmp_path / "old"
+    assert main(argv(out, plots=True)) == 0
+    (out / MANIFEST).unlink()  # as an older multilayer left it: summary.json, no manifest
+    files = user_files(out)
+    assert main(argv(out)) == 0
+    assert unchanged(out, files) and (out / MANIFEST).is_file()
+
+
+# -- a dangerous --out ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("where", ["", ".", "cwd-absolute", "cwd-relative"])
+def test_the_current_directory_is_refused(tmp_path, monkeypatch, capsys, where):
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    (cwd / "my.png").write_bytes(b"mine")
+    monkeypatch.chdir(cwd)
+    out = {"": "", ".": ".", "cwd-absolute": str(cwd), "cwd-relative": "../cwd/."}[where]
+    assert main(argv(out)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and ("is empty" if not out else "current directory") in err
+    assert sorted(p.name for p in cwd.iterdir()) == ["my.png"]  # nothing written, nothing removed
+    if out:  # --force: the run writes into it, and only its own files
+        assert main(argv(out, "--force")) == 0
+        assert (cwd / "my.png").read_bytes() == b"mine" and (cwd / "summary.json").is_file()
+
+
+def test_root_and_home_are_refused(tmp_path, monkeypatch, capsys):
+    home = tmp_path / "home"
+    home.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    assert main(argv(home)) == 2
+    assert "home folder" in capsys.readouterr().err
+    assert main(argv("/")) == 2
+    assert "root of the file system" in capsys.readouterr().err
+    assert list(home.iterdir()) == []
+    with pytest.raises(ResultsError, match="is empty"):
+        ResultsFolder("")
+
+
+# -- symbolic links -----------------------------------------------------------------------------------------
+def test_links_are_never_followed(tmp_path, capsys):
+    outside = tmp_path / "outside.txt"
+    outside.write_text("precious")
+    out = tmp_path / "links"
+    assert main(argv(out, "--checkpoint-every", "5")) == 0
+    for name in ("summary.json.tmp", ".summary.json.0123abcd.tmp", "series.csv", "summary.json",
+                 "checkpoint.json", "wall_000005.vtu", "wall.pvd"):
+        (out / name).unlink(missing_ok=True)
+        (out / name).symlink_to(outside)
+    assert main(argv(out, "--checkpoint-every", "5", plots=True)) == 0
+    assert outside.read_text() == "precious"
+    assert (out / "summary.json.tmp").is_symlink()  # not the run's: left as it was
+    assert json.loads((out / "summary.json").read_text())["status"] == "ok"
+    assert not (out / "series.csv").is_symlink()  # the run's own name: replaced
+    # a link where the run appends: refused, not followed
+    folder = ResultsFolder(tmp_path / "api")
+    series = folder.series(["step"])
+    series.path.unlink()
+    series.path.symlink_to(outside)
+    with pytest.raises(ResultsError, match="symbolic link"):
+        series.append({"step": 1})
+    folder.release()
+    assert outside.read_text() == "precious"
+
+
+def test_a_lock_that_is_a_link_is_refused_and_its_target_unchanged(tmp_path, capsys):
+    outside = tmp_path / "outside.txt"
+    outside.write_text("precious")
+    out = tmp_path / "lk"
+    assert main(argv(out)) == 0
+    (out / ".lock").symlink_to(outside)
+    assert main(argv(out)) == 2
+    assert "symbolic link" in capsys.readouterr().err
+    assert outside.read_text() == "precious"
+    (out / ".lock").unlink()
+    (out / ".lock").symlink_to(tmp_path / "nowhere")  # dangling: not created either
+    assert main(argv(out)) == 2
+    assert not (tmp_path / "nowhere").exists()
+
+
+# -- the lock -----------------------------------------------------------------------------------------------
+def test_two_openings_started_together_exactly_one_wins_200_times(tmp_path):
+    """200 trials: two threads open one folder at the same instant; one holds it, the other is refused."""
+    trials = 200
+    for trial in range(trials):
+        folder = tmp_path / f"t{trial % 20}"  # new folders, and folders earlier trials used
+        start, done = threading.Barrier(2), threading.Barrier(2)
+        won, lost = [], []
+
+        def open_folder():
+            start.wait()
+            try:
+                held = ResultsFolder(folder)
+            except ResultsError as exc:
+                lost.append(str(exc))
+                held = None
+            else:
+                won.append(held)
+            done.wait()  # the winner holds the folder until both have tried
+            if held is not None:
+                held.release()
+
+        threads = [threading.Thread(target=open_folder) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert len(won) == 1 and len(lost) == 1, (trial, lost)
+        assert "in use by another run" in lost[0] and f"PID {os.getpid()}" in lost[0]
+        assert not (folder / ".lock").exists()
+
+
+def hold_in_another_process(folder: Path) -> subprocess.Popen:
+    code = ("import sys; from multilayer.results.folder import ResultsFolder; f = ResultsFolder(sys.argv[1]); "
+            "print('held', flush=True); sys.stdin.read()")
+    proc = subprocess.Popen([sys.executable, "-c", code, str(folder)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "held"
+    return proc
+
+
+def test_a_live_holder_is_named_and_a_dead_ones_lock_is_taken_over(tmp_path, capsys):
+    out = tmp_path / "held"
+    proc = hold_in_another_process(out)
+    try:
+        assert main(argv(out)) == 2
+        err = capsys.readouterr().err
+        assert f"in use by another run (PID {proc.pid})" in err and len(err.strip().splitlines()) == 1
+    finally:
+        proc.kill()  # dies holding it: its lock file stays, its flock goes
+        proc.wait()
+    assert (out / ".lock").read_text().split() == [str(proc.pid), socket.gethostname()]
+    assert main(argv(out)) == 0  # the stale lock is taken over
+    assert not (out / ".lock").exists()
+    (out / ".lock").write_text(f"{proc.pid} {socket.gethostname()}\n")  # a dead PID of this host
+    assert main(argv(out)) == 0
+
+
+def test_two_runs_started_together_one_runs_the_other_is_refused(tmp_path):
+    """Full runs, in two processes released at the same instant (1 + 1 trials)."""
+    go = tmp_path / "go"
+    code = ("import os, sys, time\n"
+            "from multilayer.commands.main import main\n"
+            "import multilayer.runner.loop, multilayer.case.casefile\n"
+            "print('ready', flush=True)\n"
+            "while not os.path.exists(sys.argv[1]): time.sleep(0.0002)\n"
+            "sys.exit(main(sys.argv[2:]))\n")
+    for trial in range(2):
+        out = tmp_path / f"both{trial}"
+        go.unlink(missing_ok=True)
+        runs = [subprocess.Popen([sys.executable, "-c", code, str(go), *argv(out, sets=["time.end=0.004"])],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+        assert [p.stdout.readline().strip() for p in runs] == ["ready", "ready"]
+        go.touch()
+        codes = [p.wait(timeout=300) for p in runs]
+        errors = [p.stderr.read() for p in runs]
+        assert sorted(codes) == [0, 2], errors
+        assert "in use by another run" in errors[codes.index(2)]
+        assert json.loads((out / "summary.json").read_text())["status"] == "ok"
