@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
+import stat
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -26,7 +28,6 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from multilayer.case.files import MAX_TABLE_BYTES, FileRefused, read_bounded
 from multilayer.functions.formula import Formula, FormulaError
 from multilayer.plugin.problems import (
     MISSING,
@@ -174,6 +175,69 @@ class SinePressure(PressureLoad):
     def to_dict(self) -> dict[str, Any]:
         return {"kind": self.kind, "amplitude": self.amplitude, "frequency": self.frequency,
                 "mean": self.mean, "phase": self.phase}
+
+
+#: The largest table file read (bytes): 10 MB is some 400 000 rows ``t, p``.
+MAX_TABLE_BYTES = 10_000_000
+
+
+class FileRefused(ValueError):
+    """A file that is not read: the message says why, in the user's words."""
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def size_text(n: float) -> str:
+    """A byte count for a message.
+
+    >>> size_text(1_000_000), size_text(10_000_000), size_text(2500)
+    ('1 MB', '10 MB', '2.5 kB')
+    """
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n:.0f} bytes"
+
+
+def read_bounded(path: Path | str, limit: int, what: str = "file") -> bytes:
+    """The bytes of ``path``, a regular file of at most ``limit`` bytes.
+
+    Raises
+    ------
+    FileNotFoundError
+        When there is no such file.
+    FileRefused
+        When it is a directory, a FIFO, a device or a socket, or larger
+        than ``limit`` (the message names which and says it is the ``what``).
+    OSError
+        When it cannot be read otherwise (permissions).
+    """
+    path = Path(path)
+    mode = os.stat(path).st_mode  # FileNotFoundError: the caller's message
+    if not stat.S_ISREG(mode):
+        raise FileRefused(f"{_kind(mode)}, not a regular file; expected a {what}")
+    # no blocking: a file swapped for a FIFO after the stat must not hang the open
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    with os.fdopen(fd, "rb") as handle:
+        info = os.fstat(handle.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise FileRefused(f"{_kind(info.st_mode)}, not a regular file; expected a {what}")
+        if info.st_size > limit:
+            raise FileRefused(f"{size_text(info.st_size)}; expected a {what} of at most {size_text(limit)}")
+        data = handle.read(limit + 1)
+    if len(data) > limit:  # it grew while read
+        raise FileRefused(f"more than {size_text(limit)}; expected a {what} of at most {size_text(limit)}")
+    return data
 
 
 #: Times of a table beyond ±this (s) are a mistake (a unit, a typo), not a waveform; so is a longer period.
