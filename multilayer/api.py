@@ -287,7 +287,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
         in memory (no snapshots, no checkpoints) and the Results are the
         same arrays, bit for bit.
     checkpoint_every : int
-        With ``out``: write ``checkpoint.pkl`` every so many steps (and when
+        With ``out``: write a checkpoint (``checkpoint.json`` + ``.npz``) every so many steps (and when
         interrupted), for ``multilayer resume``.
     progress : bool or callable, optional
         True shows the command line's progress bar (on stderr); a callable

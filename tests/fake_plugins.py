@@ -7,9 +7,12 @@ real models: ``Registry.load(extra=[fake_plugins], entry_points=False)``.
 from __future__ import annotations
 
 import attrs
+import scipy.sparse as sp
 
+from multilayer.fluid.contract import Fluid
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, FluidPlugin, LayerPlugin, Param
+from multilayer.wall.layer import LayerMatrices, ThickLayer, ThinLayer
 
 # the real geometry and pressure ends: every case has a geometry and two ends, and these have no model behind them
 from multilayer_plugins.planar import multilayer_geometries  # noqa: F401
@@ -23,18 +26,46 @@ POISSON = Param("poisson", "σ", gt=-1.0, lt=0.5, doc="Poisson ratio")
 
 @attrs.frozen
 class Model:
-    """Any fake model: its parameters, nothing else."""
+    """Any fake fluid or coupler: its parameters, nothing else."""
 
     params: dict = attrs.field(factory=dict)
+
+    def energy(self, setup, state):  # a coupler's methods (never called)
+        return {}
+
+    def evolve(self, setup, state):
+        return iter(())
 
 
 def model(**params: object) -> Model:
     return Model(params)
 
 
-@attrs.frozen
-class Band:
-    thickness: float
+# stand-ins pass validation's checks of the type a factory returns (they are never run)
+Fluid.register(Model)
+
+
+def _identity(space) -> LayerMatrices:
+    n = int(space.ndofs)
+    return LayerMatrices(sp.identity(n, format="csr"), sp.csr_matrix((n, n)), sp.identity(n, format="csr"))
+
+
+class Thin(ThinLayer):
+    """Any fake thin layer: its parameters, and matrices the validator's small wall accepts."""
+
+    def __init__(self, **params: object):
+        self.params = params
+
+    def forms(self, space) -> LayerMatrices:
+        return _identity(space)
+
+
+class Band(ThickLayer):
+    def __init__(self, thickness: float):
+        self.thickness = thickness
+
+    def forms(self, space) -> LayerMatrices:
+        return _identity(space)
 
 
 def band(**params: object) -> Band:
@@ -43,7 +74,7 @@ def band(**params: object) -> Band:
     return Band(params["thickness"])
 
 
-class NeedsFluid:
+class NeedsFluid(Model):
     def check_case(self, case: object) -> list[str]:
         return [] if case.fluid is not None else ["kinematic-splitting needs a fluid"]
 
@@ -51,10 +82,10 @@ class NeedsFluid:
 @hookimpl
 def multilayer_layers():
     return [
-        LayerPlugin("wave-membrane", model, (DENSITY, THICKNESS, Param("tension", "C1", "dyn", gt=0.0)), "membrane"),
+        LayerPlugin("wave-membrane", Thin, (DENSITY, THICKNESS, Param("tension", "C1", "dyn", gt=0.0)), "membrane"),
         LayerPlugin(
             "koiter-shell",
-            model,
+            Thin,
             (DENSITY, THICKNESS, YOUNG, POISSON, Param("viscosity", "D1", "dyn·s/cm²", default=0.0, ge=0.0)),
             "shell",
         ),

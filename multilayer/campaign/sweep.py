@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import csv
 import json
-import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -36,6 +35,7 @@ from multilayer.campaign.measures import measure
 from multilayer.campaign.report import cell
 from multilayer.campaign.variants import sanitize
 from multilayer.case.casefile import load_case
+from multilayer.case.files import read_case
 from multilayer.case.grid import (
     Point,
     SweepTable,
@@ -74,12 +74,7 @@ class SweepRun:
 
 def read_sweep_table(case_file: Path) -> SweepTable | None:
     """The ``[sweep]`` table of ``case_file`` (None without one); CaseError with its key paths when invalid."""
-    try:
-        data = tomllib.loads(Path(case_file).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CaseError([Problem(str(case_file), MISSING, "no such case file")]) from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise CaseError([Problem(str(case_file), MISSING, f"cannot read the case file ({exc})")]) from None
+    data = read_case(case_file)  # bounded: a FIFO, a device, a huge or deeply nested file is a CaseError
     if "sweep" not in data:
         return None
     table, problems = sweep_table(data["sweep"])

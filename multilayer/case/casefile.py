@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tomllib
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -20,8 +19,11 @@ from typing import Any
 import attrs
 
 from multilayer.case import resources
+from multilayer.case.contracts import contract_problem
 from multilayer.case.ends import END_KEYS, build_end
+from multilayer.case.files import read_case
 from multilayer.case.grid import sweep_table
+from multilayer.case.initial import closing_problems
 from multilayer.case.keys import (
     _blame_overrides,
     apply_overrides,
@@ -56,6 +58,8 @@ from multilayer.case.schema import (
     SOLVER,
     TIME,
     WALL_LOAD_KEYS,
+    reserved_column,
+    reserved_problem,
 )
 from multilayer.functions.domain import Domain, judge
 from multilayer.functions.formula import Formula, FormulaError
@@ -73,9 +77,8 @@ from multilayer.plugin.records import Param
 from multilayer.plugin.registry import Registry
 from multilayer.wall import probe as wall_probe
 from multilayer.wall.checks import abstract_problem, raised, type_problem
-from multilayer.wall.layer import Layer
 
-__all__ = ["CaseError", "Problem", "load_case", "validate_data", "apply_overrides", "coupler_problems",
+__all__ = ["CaseError", "Problem", "load_case", "read_case", "validate_data", "apply_overrides", "coupler_problems",
            "coupler_objections", "key_steps", "parse_value"]
 
 
@@ -98,16 +101,7 @@ def load_case(path: Path | str, overrides: Iterable[str] = (), registry: Registr
         Listing every problem found, each with its key path.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CaseError([Problem(str(path), MISSING, "no such case file")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CaseError([Problem(str(path), MISSING, f"cannot read the case file ({exc})")]) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError([Problem(str(path), MISSING, f"invalid TOML: {exc}")]) from None
+    data = read_case(path)
     overrides = list(overrides)
     problems = apply_overrides(data, overrides)
     if problems:
@@ -162,9 +156,6 @@ def coupler_objections(coupler: Any, case: Case) -> list[Problem]:
     return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in reasons]
 
 
-# -- overrides -------------------------------------------------------------
-
-
 # -- validation -------------------------------------------------------------
 
 
@@ -180,7 +171,7 @@ class _Validator:
         #: the coupler built from the case, when it could be: asked for its objections
         self.coupler_object: Any = None
         #: the layer objects built from the case, by key path
-        self.built_layers: dict[str, Layer] = {}
+        self.built_layers: dict[str, Any] = {}
         #: each open end's condition as resolved case-file data
         self.ends: dict[str, dict[str, Any]] = {}
 
@@ -233,7 +224,7 @@ class _Validator:
         parts["fluid"] = self.part("fluid", mark, lambda: fluid)
         mark = self.mark()
         layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
-        self.add(resources.size_problems(mesh, fluid is not None, layers))
+        self.add(sized := resources.size_problems(mesh, fluid is not None, layers))
         if self.mark() == mark and shape is not None:
             self.probe_layers(layers, shape, geometry, mesh)
         coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
@@ -259,6 +250,8 @@ class _Validator:
                                    lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"],
                                                  solver["factors"], solver["factorization_cost"]))
         parts["threads"] = self.part("solver", mark, lambda: solver["threads"])
+        if layers and not sized:  # a wall on a mesh that fits: its initial displacement against the channel
+            self.add(closing_problems(*(parts[k] for k in ("geometry", "mesh", "initial", "limits"))))
         case = Case(**parts)
         self.add(self.objections(case))
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
@@ -332,19 +325,23 @@ class _Validator:
         self.add(problems)
         return found, params, not problems
 
-    def construct(self, found: Any, params: dict[str, Any], path: str) -> Any:
+    def construct(self, found: Any, params: dict[str, Any], path: str, kind: str = "") -> Any:
         """Build the plugin once: only its factory can check constraints across parameters.
 
-        A ``ValueError`` is the factory's verdict on the parameters; any other
-        exception, or a class with unimplemented abstract methods, is a
-        mistake in the plugin, reported at ``path`` with the plugin's name.
+        A ``ValueError`` is the factory's verdict on the parameters; any other exception, a class
+        with unimplemented abstract methods, or an object that is not of its ``kind`` (:mod:`.contracts`)
+        is a mistake in the plugin, reported at ``path`` with the plugin's name; then None.
         """
         problem = abstract_problem(found.record.factory)
         if problem:
             self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
             return None
         try:
-            return found.record.factory(**params)
+            built = found.record.factory(**params)
+            problem = contract_problem(kind, built)
+            if problem is None:
+                return built
+            self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
         except ValueError as exc:
             message = str(exc) if str(exc).startswith(found.name) else f"{found.name}: {exc}"
             self.problems.append(Problem(path, MISSING, message))
@@ -361,7 +358,7 @@ class _Validator:
             return ModelSpec(path="fluid", model="?")
         found, params, ok = checked
         if ok:
-            self.construct(found, params, "fluid")
+            self.construct(found, params, "fluid", "fluid")
         return ModelSpec(path="fluid", model=found.name, params=params)
 
     def layers(self, specs: Any, fluid: ModelSpec | None) -> tuple[list[LayerSpec], float, Any]:
@@ -409,11 +406,12 @@ class _Validator:
         if not ok:
             self.stack_known = False
             return None
+        mark = self.mark()
         layer = self.construct(found, params, path)
-        if isinstance(layer, Layer):  # (validation alone can use stand-ins that are not layers)
-            problem = type_problem(layer, thin)
-            if problem:
-                self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+        problem = type_problem(layer, thin) if self.mark() == mark else None  # (None returned: told already)
+        if problem:
+            self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
+        elif self.mark() == mark:
             self.built_layers[path] = layer
         H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
         return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
@@ -468,7 +466,7 @@ class _Validator:
             return ModelSpec(path="coupler", model="?")
         found, params, ok = checked
         if ok:
-            self.coupler_object = self.construct(found, params, "coupler")
+            self.coupler_object = self.construct(found, params, "coupler", "coupler")
         return ModelSpec(path="coupler", model=found.name, params=params)
 
     def formula(self, expr: Any, path: str, constants: Mapping[str, float], domain: Domain) -> Formula:
@@ -555,6 +553,8 @@ class _Validator:
                 continue
             if probe.name in names:
                 self.problems.append(Problem(f"output.probes[{i}].name", probe.name, "a probe of that name exists already"))
+            elif reserved_column(probe.name):
+                self.problems.append(reserved_problem(f"output.probes[{i}].name", probe.name, probe.place))
             names.add(probe.name)
             probes.append(probe)
         return Output(every=values.get("every", 0), probes=tuple(probes))
@@ -595,5 +595,5 @@ class _Validator:
         self.add(found)
         if found:
             return None
-        name = values["name"] or (f"{q}_z{z:g}" + (f"_r{r:g}" if r is not None else "") + (f"_line{line}" if line else ""))
-        return Probe(name=name, quantity=q, z=z, r=r, line=line or 0)
+        probe = Probe(name="", quantity=q, z=z, r=r, line=line or 0)
+        return attrs.evolve(probe, name=values["name"] or probe.place)

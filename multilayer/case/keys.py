@@ -7,6 +7,7 @@ import tomllib
 from collections.abc import Iterable
 from typing import Any
 
+from multilayer.case.files import MAX_DEPTH, path_text, toml_depth
 from multilayer.plugin.problems import (
     MISSING,
     CaseError,
@@ -19,17 +20,38 @@ _STEP = re.compile(r"([A-Za-z0-9_-]+)((?:\[\d+\])*)$")
 def parse_value(text: str) -> Any:
     """A ``--set`` value: a TOML value when it is one, else the bare string.
 
+    Text nested deeper than :data:`~multilayer.case.files.MAX_DEPTH` is not
+    parsed (the parser would recurse out of the stack): it stays a string,
+    which no schema takes (:func:`apply_overrides` reports it at its key).
+
     >>> parse_value("5e-5"), parse_value("true"), parse_value("koiter-shell"), parse_value('"a b"')
     (5e-05, True, 'koiter-shell', 'a b')
+    >>> parse_value("[" * 500 + "]" * 500)[:3]
+    '[[['
     """
+    if too_deep(text):
+        return text.strip()
     try:
         return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         pass
     try:
         return float(text)
     except ValueError:
         return text.strip()
+
+
+def too_deep(text: str) -> bool:
+    """True when the TOML value ``text`` nests arrays or inline tables more than :data:`MAX_DEPTH` deep."""
+    return toml_depth(text, stop=MAX_DEPTH) > MAX_DEPTH
+
+
+def depth_problem(key: str, text: str, option: str = "--set") -> Problem | None:
+    """A problem at ``key`` when a value given with ``option`` is nested too deeply, else None."""
+    if not too_deep(text):
+        return None
+    return Problem(key, text.strip(), f"nested more than {MAX_DEPTH} levels deep (arrays, inline tables); "
+                                      f"expected at most {MAX_DEPTH} (from {option})")
 
 
 def key_steps(key: str) -> list[str | int] | None:
@@ -46,13 +68,6 @@ def key_steps(key: str) -> list[str | int] | None:
         steps.append(match.group(1))
         steps.extend(int(i) for i in re.findall(r"\[(\d+)\]", match.group(2)))
     return steps
-
-
-def _path_text(steps: Iterable[str | int]) -> str:
-    text = ""
-    for s in steps:
-        text += f"[{s}]" if isinstance(s, int) else (f".{s}" if text else s)
-    return text
 
 
 def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[Problem]:
@@ -77,19 +92,27 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[Prob
         if not steps:
             problems.append(Problem("--set", item, "expected KEY=VALUE with KEY like time.dt or layers[0].young"))
             continue
+        if len(steps) > MAX_DEPTH:
+            problems.append(Problem(key[:60] + "...", MISSING, f"a key path of {len(steps)} steps; expected at most "
+                                                               f"{MAX_DEPTH} (from --set)"))
+            continue
+        deep = depth_problem(key, text)
+        if deep is not None:
+            problems.append(deep)
+            continue
         node: Any = data
         for i, step in enumerate(steps):
             last = i == len(steps) - 1
-            where = _path_text(steps[: i + 1])
+            where = path_text(steps[: i + 1])
             if isinstance(step, int):
                 if not isinstance(node, list):
-                    problems.append(Problem(_path_text(steps[:i]), MISSING, "not a list; cannot index it"))
+                    problems.append(Problem(path_text(steps[:i]), MISSING, "not a list; cannot index it"))
                     break
                 if step >= len(node):
-                    problems.append(Problem(where, MISSING, f"no such entry; {_path_text(steps[:i])!r} has {len(node)}"))
+                    problems.append(Problem(where, MISSING, f"no such entry; {path_text(steps[:i])!r} has {len(node)}"))
                     break
             elif not isinstance(node, dict):
-                problems.append(Problem(_path_text(steps[:i]), node, f"not a table; cannot set {step!r} in it"))
+                problems.append(Problem(path_text(steps[:i]), node, f"not a table; cannot set {step!r} in it"))
                 break
             if last:
                 node[step] = parse_value(text)
@@ -176,4 +199,10 @@ def parse_vary(text: str) -> tuple[str, list[str]]:
         raise CaseError([Problem("--vary", text, "an empty value", "two commas in a row, or one at an end?")])
     if len(values) < 2:
         raise CaseError([Problem("--vary", text, "expected two or more values, separated by commas")])
+    if len(key_steps(key)) > MAX_DEPTH:
+        raise CaseError([Problem("--vary", text, f"a key path of {len(key_steps(key))} steps; expected at most "
+                                                 f"{MAX_DEPTH}")])
+    deep = [p for p in (depth_problem(key, v, "--vary") for v in values) if p is not None]
+    if deep:
+        raise CaseError(deep)
     return key, values

@@ -85,6 +85,16 @@ class Probe:
     r: float | None = None
     line: int = 0  #: interface line (0 = lumen) for line quantities
 
+    @property
+    def place(self) -> str:
+        """The name of a probe that has none: its quantity and place.
+
+        >>> Probe("", "d_r", 3.0, 0.55).place, Probe("", "v", 3.0, line=1).place
+        ('d_r_z3_r0.55', 'v_z3_line1')
+        """
+        r, line = self.r, self.line
+        return f"{self.quantity}_z{self.z:g}" + (f"_r{r:g}" if r is not None else "") + (f"_line{line}" if line else "")
+
 
 @attrs.frozen
 class Output:

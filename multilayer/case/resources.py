@@ -34,7 +34,7 @@ from typing import Any
 
 import attrs
 
-from multilayer.case.schema import STEPS_TOL
+from multilayer.case.schema import MAX_STEPS, STEPS_TOL
 from multilayer.plugin.problems import Problem
 
 #: Peak memory of a run per unknown (bytes) at :data:`DOFS_MEASURED` unknowns, measured and rounded up.
@@ -46,8 +46,6 @@ DOFS_MEASURED = 300_000
 GROWTH = 0.05
 #: Resident memory of the process before a run (Python, numpy, scipy, scikit-fem), measured and rounded up.
 BASELINE = 100e6
-#: More steps than this is a mistake (a time step in the wrong unit), not a run.
-MAX_STEPS = 10**8
 
 GB = 1e9
 

@@ -7,7 +7,13 @@ from __future__ import annotations
 
 from multilayer.case.ends import END_KEYS
 from multilayer.numerics.linsolve import BACKENDS, FACTORS, REUSE_MODES, Reuse
+from multilayer.plugin.problems import Problem
 from multilayer.plugin.records import Param
+
+#: More steps than this is a mistake (a time step in the wrong unit), not a run; also the bound of ``output.every``.
+MAX_STEPS = 10**8
+#: More layers than this is a mistake: the bound of a probe's interface ``line``.
+MAX_LINES = 1000
 
 SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "loads", "initial", "output", "solver",
             "sweep")
@@ -17,6 +23,8 @@ GEOMETRY = (
     Param("radius", "R", "cm", gt=0.0, doc="reference radius of the lumen"),
     Param("kind", type=str, default="planar", doc="the geometry plugin: what the (z, r) plane stands for"),
 )
+# mesh.nz, mesh.nr (and a band's cells) have no bound here: the memory check bounds them against the machine
+# (multilayer.case.resources.size_problems), with a message that says how much memory they would need
 MESH = (
     Param("nz", type=int, ge=1, doc="cells along z, shared by every field"),
     Param("nr", type=int, ge=1, doc="fluid cells across the lumen"),
@@ -29,7 +37,7 @@ TIME = (
 )
 
 
-#: radial cells of a thick layer: a core key, not a plugin parameter
+#: radial cells of a thick layer: a core key, not a plugin parameter (its upper bound: the memory check)
 CELLS = Param("cells", type=int, ge=1, default=4, doc="radial cells of a thick band")
 WALL_LOAD_KEYS = ("external", "interface")
 LOAD_KEYS = (*END_KEYS, *WALL_LOAD_KEYS)
@@ -43,15 +51,15 @@ PROBE = (
     Param("z", "z", "cm", doc="axial position"),
     Param("r", "r", "cm", default=None,
           doc="radial position in the reference configuration: Lagrangian in the wall, r̂ of the ALE map in the fluid"),
-    Param("line", type=int, ge=0, default=None, doc="interface line of eta/v (0 = lumen)"),
+    Param("line", type=int, ge=0, le=MAX_LINES, default=None, doc="interface line of eta/v (0 = lumen)"),
 )
-OUTPUT = (Param("every", type=int, ge=0, default=0, doc="snapshot cadence in steps (0: none)"),)
+OUTPUT = (Param("every", type=int, ge=0, le=MAX_STEPS, default=0, doc="snapshot cadence in steps (0: none)"),)
 SOLVER = (
     Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),
     Param("reuse", type=str, default="krylov", choices=REUSE_MODES,
           doc="a changing matrix: 'krylov' (GMRES preconditioned by an earlier factorization) or 'none' "
               "(factorize every step)"),
-    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1,
+    Param("max_iterations", type=int, default=Reuse().max_iterations, ge=1, le=1000,
           doc="GMRES iterations above which the preconditioner is refactorized (reuse = 'krylov')"),
     Param("tolerance", default=Reuse().tolerance, gt=0.0, lt=1.0,
           doc="relative residual a Krylov solve reaches (reuse = 'krylov')"),
@@ -63,7 +71,7 @@ SOLVER = (
               "needed when young are added up, and at this sum they are replaced (reuse = 'krylov'; default: "
               "14 up to 70k unknowns, then growing like their square root; a very large value: only at "
               "max_iterations)"),
-    Param("threads", type=int, default=1, ge=0,
+    Param("threads", type=int, default=1, ge=0, le=1024,
           doc="BLAS threads of numpy/scipy during a run (0: the libraries' defaults)"),
     Param("max_displacement", "", "R", default=0.5, gt=0.0,
           doc="stop the run when |η| on the lumen exceeds this fraction of R"),
@@ -74,3 +82,25 @@ SOLVER = (
 
 #: relative tolerance on end/dt being a whole number of steps
 STEPS_TOL = 1e-6
+
+
+#: Columns of ``series.csv`` a probe may not be named: the step, the time and the coupler's iteration count ...
+RESERVED_COLUMNS = ("step", "t", "iterations")
+#: ... and every column of the energy ledger and of the ends' and couplers' diagnostics, by its prefix.
+RESERVED_PREFIXES = ("energy.", "kinetic.", "elastic.", "stored.", "work.", "dissipation.", "end.", "interface.")
+
+
+def reserved_column(name: str) -> bool:
+    """True when a probe named ``name`` would overwrite a column of ``series.csv`` the run writes itself.
+
+    >>> [reserved_column(n) for n in ("t", "energy.total", "work.inlet", "eta_mid", "energy", "T")]
+    [True, True, True, False, False, False]
+    """
+    return name in RESERVED_COLUMNS or name.startswith(RESERVED_PREFIXES)
+
+
+def reserved_problem(path: str, name: str, instead: str) -> Problem:
+    """The problem of a probe named like a column of ``series.csv`` (``instead``: a name it could have)."""
+    reserved = ", ".join([*RESERVED_COLUMNS, *(f"{prefix}*" for prefix in RESERVED_PREFIXES)])
+    return Problem(path, name, f"a column series.csv has already (reserved: {reserved})",
+                   f"give the probe a name of its own, e.g. {instead!r}")

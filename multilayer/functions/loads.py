@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
+import stat
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -175,31 +177,126 @@ class SinePressure(PressureLoad):
                 "mean": self.mean, "phase": self.phase}
 
 
+#: The largest table file read (bytes): 10 MB is some 400 000 rows ``t, p``.
+MAX_TABLE_BYTES = 10_000_000
+
+
+class FileRefused(ValueError):
+    """A file that is not read: the message says why, in the user's words."""
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def size_text(n: float) -> str:
+    """A byte count for a message.
+
+    >>> size_text(1_000_000), size_text(10_000_000), size_text(2500)
+    ('1 MB', '10 MB', '2.5 kB')
+    """
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n:.0f} bytes"
+
+
+def read_bounded(path: Path | str, limit: int, what: str = "file") -> bytes:
+    """The bytes of ``path``, a regular file of at most ``limit`` bytes.
+
+    Raises
+    ------
+    FileNotFoundError
+        When there is no such file.
+    FileRefused
+        When it is a directory, a FIFO, a device or a socket, or larger
+        than ``limit`` (the message names which and says it is the ``what``).
+    OSError
+        When it cannot be read otherwise (permissions).
+    """
+    path = Path(path)
+    mode = os.stat(path).st_mode  # FileNotFoundError: the caller's message
+    if not stat.S_ISREG(mode):
+        raise FileRefused(f"{_kind(mode)}, not a regular file; expected a {what}")
+    # no blocking: a file swapped for a FIFO after the stat must not hang the open
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    with os.fdopen(fd, "rb") as handle:
+        info = os.fstat(handle.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise FileRefused(f"{_kind(info.st_mode)}, not a regular file; expected a {what}")
+        if info.st_size > limit:
+            raise FileRefused(f"{size_text(info.st_size)}; expected a {what} of at most {size_text(limit)}")
+        data = handle.read(limit + 1)
+    if len(data) > limit:  # it grew while read
+        raise FileRefused(f"more than {size_text(limit)}; expected a {what} of at most {size_text(limit)}")
+    return data
+
+
+#: Times of a table beyond ±this (s) are a mistake (a unit, a typo), not a waveform; so is a longer period.
+MAX_TABLE_TIME = 1e9
+
+
 def read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Read a two-column CSV ``t, p`` (an optional header line, ``#`` comments).
 
-    Raises ValueError naming the line of a bad row.
+    The file must be a regular file of at most :data:`~multilayer.case.files.MAX_TABLE_BYTES`
+    (a FIFO, a device, a directory are refused before they are read).
+
+    Raises ValueError naming the line of a bad row (:class:`~multilayer.case.files.FileRefused`
+    for a file that is not read; FileNotFoundError, OSError).
+    """
+    return _read_csv(path)[:2]
+
+
+def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, str]:
+    """(times, values, SHA-256 of the bytes) of a table file, read once and with bounds."""
+    raw = read_bounded(path, MAX_TABLE_BYTES, "table file")
+    return (*parse_table(raw.decode("utf-8")), hashlib.sha256(raw).hexdigest())
+
+
+def parse_table(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """The rows ``t, p`` of a table's text; ValueError naming the line of a bad row.
+
+    >>> parse_table("t,p\\n0,1\\n1e308,2\\n")
+    Traceback (most recent call last):
+    ...
+    ValueError: line 3: the time 1e+308 s is outside [-1e+09, 1e+09] s
     """
     rows: list[tuple[float, float]] = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
-        text = line.split("#", 1)[0].strip()
-        if not text:
+    lines: list[int] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        body = line.split("#", 1)[0].strip()
+        if not body:
             continue
-        fields = [f.strip() for f in (text.split(",") if "," in text else text.split())]
+        fields = [f.strip() for f in (body.split(",") if "," in body else body.split())]
         try:
             t, p = (float(f) for f in fields)
         except ValueError:
             if not rows and not any(_is_number(f) for f in fields):
                 continue  # the header line
             raise ValueError(f"line {number}: expected two numbers 't, p', got {line.strip()!r}") from None
+        if not (math.isfinite(t) and math.isfinite(p)):
+            raise ValueError(f"line {number}: every t and p must be a finite number, got {line.strip()!r}")
+        if abs(t) > MAX_TABLE_TIME:
+            raise ValueError(f"line {number}: the time {t:g} s is outside [{-MAX_TABLE_TIME:g}, {MAX_TABLE_TIME:g}] s")
         rows.append((t, p))
+        lines.append(number)
     if len(rows) < 2:
         raise ValueError("expected at least two rows 't, p'")
     data = np.array(rows)
-    if not np.all(np.isfinite(data)):
-        raise ValueError("every t and p must be a finite number")
-    if np.any(np.diff(data[:, 0]) <= 0):
-        raise ValueError("the times t must increase strictly from row to row")
+    steps = np.diff(data[:, 0])
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0))
+        raise ValueError(f"line {lines[i + 1]}: the times t must increase strictly from row to row "
+                         f"({data[i + 1, 0]:g} s after {data[i, 0]:g} s)")
     return data[:, 0], data[:, 1]
 
 
@@ -236,6 +333,17 @@ class TablePressure(PressureLoad):
     def __attrs_post_init__(self) -> None:
         if self.times.shape != self.values.shape or self.times.size < 2:
             raise ValueError("a table needs at least two points (t, p)")
+        if not (np.all(np.isfinite(self.times)) and np.all(np.abs(self.times) <= MAX_TABLE_TIME)):
+            raise ValueError(f"every time must be a finite number in [{-MAX_TABLE_TIME:g}, {MAX_TABLE_TIME:g}] s")
+        if np.any(np.diff(self.times) <= 0):
+            raise ValueError("the times t must increase strictly from row to row")
+        if self.period is not None and not 0.0 < self.period <= MAX_TABLE_TIME:
+            raise ValueError(f"the period must be a number in (0, {MAX_TABLE_TIME:g}] s")
+        x, y = self._knots()
+        with np.errstate(all="ignore"):
+            area = float(np.sum(np.abs(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
+        if not (np.all(np.isfinite(y)) and math.isfinite(area)):
+            raise ValueError("the pressures times the scale, or their integral over the table, overflow")
         if self.period is not None and self.times[-1] - self.times[0] > self.period * (1 + 1e-12):
             raise ValueError(
                 f"the table spans {self.times[-1] - self.times[0]:g} s, more than one period ({self.period:g} s)"
@@ -244,8 +352,7 @@ class TablePressure(PressureLoad):
     @classmethod
     def from_csv(cls, path: Path, file: str = "", period: float | None = None, scale: float = 1.0) -> TablePressure:
         """Read ``path`` (see :func:`read_table`); ``file`` is the name as the case gives it."""
-        times, values = read_table(path)
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        times, values, digest = _read_csv(path)
         return cls(times, values, period=period, scale=scale, file=file or str(path), sha256=digest)
 
     def _knots(self) -> tuple[np.ndarray, np.ndarray]:
@@ -332,7 +439,7 @@ KINDS: dict[str, tuple[Param, ...]] = {
     ),
     "table": (
         Param("file", type=str, doc="CSV file t,p, relative to the case file's folder"),
-        Param("period", "T", "s", default=None, gt=0.0, doc="repeat the table with this period"),
+        Param("period", "T", "s", default=None, gt=0.0, le=MAX_TABLE_TIME, doc="repeat the table with this period"),
         Param("scale", default=1.0, doc="factor applied to every p"),
         Param("sha256", type=str, default=None, doc="expected SHA-256 of the file (checked if given)"),
     ),
@@ -416,14 +523,28 @@ def _formula(expr: str, path: str, constants: Mapping[str, float] | None) -> For
 
 
 def _table(params: dict[str, Any], path: str, base_dir: Path) -> TablePressure:
-    where = f"{path}.file"
-    file = base_dir / params["file"]
-    if not file.is_file():
-        raise CaseError([Problem(where, params["file"], "no such file", f"looked for {file}")])
+    where, name = f"{path}.file", params["file"]
+    file = base_dir / name
     try:
-        table = TablePressure.from_csv(file, params["file"], params["period"], params["scale"])
+        times, values, digest = _read_csv(file)
+    except FileNotFoundError:
+        raise CaseError([Problem(where, name, "no such file", f"looked for {file}")]) from None
+    except FileRefused as exc:
+        raise CaseError([Problem(where, name, str(exc), f"looked at {file}")]) from None
+    except OSError as exc:
+        raise CaseError([Problem(where, name, f"cannot read the table file ({exc})")]) from None
+    except ValueError as exc:  # (UnicodeDecodeError too)
+        raise CaseError([Problem(where, name, f"invalid table: {exc}")]) from None
+    with np.errstate(all="ignore"):
+        scaled = params["scale"] * values
+    if not np.all(np.isfinite(scaled)):
+        p = values[int(np.argmax(~np.isfinite(scaled)))]
+        raise CaseError([Problem(f"{path}.scale", params["scale"], f"scale × p overflows for p = {p:g} in {name}",
+                                 "expected a finite scaled pressure")])
+    try:
+        table = TablePressure(times, values, period=params["period"], scale=params["scale"], file=name, sha256=digest)
     except ValueError as exc:
-        raise CaseError([Problem(where, params["file"], f"invalid table: {exc}")]) from None
+        raise CaseError([Problem(where, name, f"invalid table: {exc}")]) from None
     expected = params["sha256"]
     if expected is not None and expected.lower() != table.sha256:
         raise CaseError([Problem(f"{path}.sha256", expected, "the file's SHA-256 differs",

@@ -9,13 +9,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
-from multilayer.plugin.registry import Registry, RegistryError
+from multilayer.plugin.registry import Registry, RegistryError, import_failure
 
 
 def import_plugin(spec: str) -> ModuleType:
     """Import a plugin module from a dotted name or a ``.py`` file (the current folder is searched).
 
-    Raises RegistryError when it cannot be imported.
+    Raises RegistryError when it cannot be imported: whatever the module
+    raises, ``sys.exit`` (``SystemExit``) and ``KeyboardInterrupt`` too, is
+    a plugin that cannot be loaded, not the end of the command.
     """
     try:
         if spec.endswith(".py"):
@@ -29,8 +31,8 @@ def import_plugin(spec: str) -> ModuleType:
         if "" not in sys.path and str(Path.cwd()) not in sys.path:
             sys.path.insert(0, str(Path.cwd()))
         return importlib.import_module(spec)
-    except Exception as exc:  # a user's module: any error means "cannot load it"
-        raise RegistryError(f"--plugin {spec}: cannot import it ({type(exc).__name__}: {exc})") from None
+    except (Exception, SystemExit, KeyboardInterrupt) as exc:  # a user's module: anything means "cannot load it"
+        raise RegistryError(f"--plugin {spec}: cannot import it ({import_failure(exc)})") from None
 
 
 def load_registry(plugins: Sequence[str] = (), warn: bool = True) -> Registry:

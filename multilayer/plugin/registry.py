@@ -87,11 +87,27 @@ def _load_entry_points(pm: pluggy.PluginManager) -> tuple[dict[int, tuple[str, s
             try:
                 plugin = ep.load()
                 pm.register(plugin, name=ep.name)
-            except Exception as exc:  # a third party's module: any error means "cannot load it"
-                failed.append(FailedPlugin(ep.name, ep.value, f"{name} {version}", f"{type(exc).__name__}: {exc}"))
+            except (Exception, SystemExit, KeyboardInterrupt) as exc:  # a third party's module: "cannot load it"
+                failed.append(FailedPlugin(ep.name, ep.value, f"{name} {version}", import_failure(exc)))
                 continue
             dists[id(plugin)] = (name, version)
     return dists, failed
+
+
+def import_failure(exc: BaseException) -> str:
+    """What a plugin module raised while imported, in one line (``sys.exit`` named as such).
+
+    >>> import_failure(SystemExit(3)), import_failure(SystemExit()), import_failure(ValueError("no"))
+    ('SystemExit: the module called sys.exit(3) while imported', 'SystemExit: the module called sys.exit() while imported', 'ValueError: no')
+    >>> import_failure(KeyboardInterrupt())
+    'KeyboardInterrupt: raised while the module was imported'
+    """
+    if isinstance(exc, SystemExit):
+        code = "" if exc.code is None else repr(exc.code)
+        return f"SystemExit: the module called sys.exit({code}) while imported"
+    if isinstance(exc, KeyboardInterrupt):
+        return "KeyboardInterrupt: raised while the module was imported"
+    return f"{type(exc).__name__}: {exc}"
 
 
 def nearest(name: str, candidates: Iterable[str]) -> str | None:

@@ -1,0 +1,68 @@
+"""The initial wall against the geometry: a lumen displacement that closes the channel is refused at validation.
+
+``initial.displacement.r`` is judged on its domain like every formula (finite
+and real); here it is also weighed against the channel it displaces: the run
+stops at once on a lumen with R + η ≤ 0 or |η| beyond ``[solver]
+max_displacement`` × R, and that check names no key, so validation does.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from multilayer.case.model import Geometry, Initial, Limits, MeshSpec
+from multilayer.plugin.problems import Problem
+
+WHERE = "initial.displacement.r"
+#: At most this many points along z are evaluated (evenly spaced when the lumen has more nodes).
+MAX_POINTS = 1_000_000
+
+
+def closing_problems(geometry: Any, mesh: Any, initial: Any, limits: Any) -> list[Problem]:
+    """The initial lumen displacement η⁰ closing the channel (R + η⁰ ≤ 0) or beyond ``[solver] max_displacement``.
+
+    ``initial.displacement.r`` is evaluated at r = R on the lumen's nodes along z (order × nz cells; the
+    ends are held at zero by the layers, so the interior ones; at most
+    :data:`MAX_POINTS` of them), where the
+    run's first check of the state would find it.  Each part may be a
+    placeholder (:mod:`multilayer.case.partial`): without geometry, mesh
+    and initial there is nothing to weigh, without limits only the gap.
+
+    >>> from multilayer.functions.formula import Formula
+    >>> zero = Formula.parse("0", {}, ("z", "r"))
+    >>> eta = Formula.parse("-0.6*sin(pi*z/L)", {"L": 6.0}, ("z", "r"))
+    >>> g, m = Geometry(6.0, 0.5), MeshSpec(6, 2, 2)
+    >>> print(*closing_problems(g, m, Initial(zero, eta, zero, zero), Limits(2.0)))
+    initial.displacement.r = '-0.6*sin(pi*z/L)': gives η = -0.6 cm at z = 3 cm on the lumen (r = R = 0.5 cm): \
+R + η ≤ 0 closes the channel; the initial radial displacement must keep R + η > 0 on the lumen
+    """
+    if not (isinstance(geometry, Geometry) and isinstance(mesh, MeshSpec) and isinstance(initial, Initial)):
+        return []
+    L, R, expr = geometry.length, geometry.radius, str(initial.displacement_r)
+    nodes = mesh.order * mesh.nz
+    if nodes < 2:
+        return []
+    z = np.linspace(0.0, L, min(nodes, MAX_POINTS) + 1)[1:-1]
+    with np.errstate(all="ignore"):
+        try:
+            eta = np.broadcast_to(np.asarray(initial.displacement_r(z=z, r=R), dtype=float), z.shape)
+        except (ValueError, TypeError, ArithmeticError):
+            return []  # (judged on its domain already)
+    if not np.all(np.isfinite(eta)):
+        return []  # (judged on its domain already)
+    i = int(np.argmin(eta))
+    if R + eta[i] <= 0.0:
+        return [Problem(WHERE, expr, f"gives η = {eta[i]:.6g} cm at z = {z[i]:.6g} cm on the lumen (r = R = {R:g} cm): "
+                                     f"R + η ≤ 0 closes the channel",
+                        "the initial radial displacement must keep R + η > 0 on the lumen")]
+    if isinstance(limits, Limits):
+        limit = limits.max_displacement * R
+        i = int(np.argmax(np.abs(eta)))
+        if abs(eta[i]) > limit:
+            return [Problem(WHERE, expr, f"gives |η| = {abs(eta[i]):.6g} cm at z = {z[i]:.6g} cm on the lumen, more "
+                                         f"than [solver] max_displacement = {limits.max_displacement:g} R = "
+                                         f"{limit:.6g} cm: the run would stop at once",
+                            "a smaller displacement, or a larger solver.max_displacement")]
+    return []
