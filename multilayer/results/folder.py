@@ -9,7 +9,10 @@ run starts, so it is written even when the disk fills up.
 
 A folder owns only what it wrote.  ``manifest.json`` lists every file the
 run owns: its files of fixed names (:data:`FIXED`, claimed when it starts,
-written or not) and each snapshot (added before it is written).  A new run
+written or not) and each snapshot (listed before it is written; the next
+ones at the same stride are listed with it, so that the manifest is
+rewritten O(log n) times for n snapshots, and those the run did not reach
+are dropped from it when the run ends).  A new run
 into the folder deletes the files of the previous manifest and nothing
 else; a resume drops only the manifest's snapshots after its checkpoint.
 A file the run would write that the manifest does not list (a user's
@@ -281,6 +284,8 @@ class ResultsFolder:
     def __init__(self, out: Path | str, fresh: bool = True, force: bool = False):
         self._lock_fd: int | None = None
         self._owned: set[str] = set()
+        self._ahead: set[str] = set()  # snapshots claimed before their step came (see _claim_snapshot)
+        self._last: dict[str, tuple[int, int]] = {}  # per collection: its last snapshot's step, snapshots claimed
         self._snapshots: dict[str, list[tuple[float, str]]] = {}
         if isinstance(out, str) and not out.strip():
             raise ResultsError("--out is empty: name the results folder")
@@ -346,6 +351,14 @@ class ResultsFolder:
         fd, self._lock_fd = getattr(self, "_lock_fd", None), None
         if fd is None:
             return
+        unwritten = {name for name in self._ahead if not os.path.lexists(self.path / name)}
+        if unwritten:  # the snapshots claimed ahead that the run did not reach
+            self._owned -= unwritten
+            self._ahead.clear()
+            try:
+                self._write_manifest()
+            except ResultsError:
+                pass
         lock = self.path / LOCK
         try:
             if os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False)):
@@ -410,6 +423,34 @@ class ResultsFolder:
             self._write_manifest()
         return self.path / name
 
+    def _claim_snapshot(self, name: str, step: int) -> Path:
+        """:meth:`claim` ``<name>_<step>.vtu``, and the next ones at the same stride, as many as claimed so far.
+
+        The manifest is rewritten O(log n) times for n snapshots, not n
+        times; :meth:`release` drops from it the claimed ones not written.
+        """
+        file = f"{name}_{step:06d}.vtu"
+        self._ahead.discard(file)
+        last, claimed = self._last.get(name, (None, 0))
+        self._last[name] = (step, claimed)
+        if file in self._owned:
+            return self.path / file
+        if os.path.lexists(self.path / file):
+            raise ResultsError(f"{self.path / file} was not written by this run: not overwritten")
+        stride = step - last if last is not None and step > last else 0
+        new = [file]
+        for k in range(1, min(max(claimed, 1), 4096) + 1 if stride else 1):
+            if step + k * stride > 999999:
+                break
+            ahead = f"{name}_{step + k * stride:06d}.vtu"
+            if ahead not in self._owned and not os.path.lexists(self.path / ahead):
+                new.append(ahead)
+                self._ahead.add(ahead)
+        self._owned.update(new)
+        self._last[name] = (step, claimed + len(new))
+        self._write_manifest()
+        return self.path / file
+
     @property
     def owned(self) -> frozenset[str]:
         """The names the manifest lists (the manifest itself included)."""
@@ -472,7 +513,7 @@ class ResultsFolder:
         file = f"{name}_{step:06d}.vtu"
         collection = self.claim(f"{name}.pvd")
         mesh = meshio.Mesh(points, dict(cells), point_data=data)
-        _write_with(self.claim(file), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
+        _write_with(self._claim_snapshot(name, step), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
         entries = self._snapshots.setdefault(name, [])
         entries.append((float(t), file))
         _append_to_collection(collection, entries)
