@@ -7,26 +7,17 @@ overwrites only the closing tags, so a snapshot costs the same however many
 came before), and ``summary.json`` has its room reserved on disk when the
 run starts, so it is written even when the disk fills up.
 
-A folder owns only what it wrote.  ``manifest.json`` lists every file the
-run owns: its files of fixed names (:data:`FIXED`, claimed when it starts,
-written or not) and each snapshot (listed before it is written; the next
-ones at the same stride are listed with it, so that the manifest is
-rewritten O(log n) times for n snapshots, and those the run did not reach
-are dropped from it when the run ends).  A new run
-into the folder deletes the files of the previous manifest and nothing
-else; a resume drops only the manifest's snapshots after its checkpoint.
-A file the run would write that the manifest does not list (a user's
-``energy.png``) stops the run before anything is touched.  No file is opened
-through a symbolic link (``O_NOFOLLOW``), and every file rewritten whole is
-written to a fresh ``.<name>.<8 hex>.tmp`` (``O_CREAT | O_EXCL``) and renamed
-over the old one.
-
-A folder is held by one run at a time: ``.lock``, an exclusive
-``flock`` with the holder's PID and host in it.  The lock goes away with its
-process, so the lock file of a run that died is taken over; a live holder
-makes the run refuse, naming its PID.  A new run (``fresh``) refuses a
-dangerous folder unless ``force``: the current directory, ``/``, the home
-folder, and a non-empty folder that is not a results folder of multilayer.
+A folder owns only what it wrote: ``manifest.json`` lists its files of
+fixed names (:data:`FIXED`, claimed when it starts) and each snapshot
+(listed before it is written, with the next ones at its stride: O(log n)
+rewrites; those not reached are dropped at the end).  A new run deletes
+the previous manifest's files, nothing else; a resume drops only its
+snapshots after the checkpoint; a file of a run's name it did not write
+stops the run.  Nothing is opened through a symbolic link (``O_NOFOLLOW``);
+whole rewrites go to a new ``.<name>.<8 hex>.tmp`` (``O_EXCL``), renamed.
+One run at a time: ``.lock``, ``flock``'d, with PID and host (a dead
+holder's is taken over).  A new run refuses the current directory, ``/``,
+home and a non-empty foreign folder unless ``force``.
 """
 
 from __future__ import annotations
@@ -43,7 +34,7 @@ import secrets
 import socket
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
 from xml.sax.saxutils import quoteattr
@@ -225,16 +216,11 @@ def may_write(folder: Path | str, name: str) -> bool:
 
 
 def _names(folder: Path) -> list[str]:
-    try:
-        return os.listdir(folder)
-    except FileNotFoundError:
-        return []
+    return os.listdir(folder) if folder.is_dir() else []
 
 
-def _is_ours_in_passing(name: str) -> bool:
-    """The lock and this module's temporaries of fixed names: what another run's start leaves in an empty folder."""
-    m = _TEMP.fullmatch(name)
-    return name == LOCK or (m is not None and m[1] in (MANIFEST, *FIXED))
+def _is_ours_in_passing(name: str) -> bool:  # what another run's start leaves in an empty folder
+    return name == LOCK or ((m := _TEMP.fullmatch(name)) is not None and m[1] in (MANIFEST, *FIXED))
 
 
 def _dangerous(path: Path) -> str:
@@ -368,10 +354,8 @@ class ResultsFolder:
         os.close(fd)  # unlocks
 
     def __del__(self) -> None:
-        try:
+        with suppress(Exception):  # the interpreter may be shutting down
             self.release()
-        except Exception:  # the interpreter is shutting down
-            pass
 
     # -- what the folder owns -----------------------------------------------------
     def _take_over(self, fresh: bool, force: bool) -> None:
@@ -407,8 +391,7 @@ class ResultsFolder:
             raise ResultsError(f"cannot remove {self.path / name}: {exc.strerror or exc}") from None
 
     def _write_manifest(self) -> None:
-        manifest = {"format": FORMAT, "about": "the files a run of multilayer owns here: only these are "
-                    "ever deleted or overwritten", "files": sorted(self._owned - {MANIFEST})}
+        manifest = {"format": FORMAT, "files": sorted(self._owned - {MANIFEST})}
         try:
             _write_atomically(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
         except OSError as exc:
@@ -450,11 +433,6 @@ class ResultsFolder:
         self._last[name] = (step, claimed + len(new))
         self._write_manifest()
         return self.path / file
-
-    @property
-    def owned(self) -> frozenset[str]:
-        """The names the manifest lists (the manifest itself included)."""
-        return frozenset(self._owned | {MANIFEST})
 
     def _reserve_summary(self) -> None:
         path = self.claim("summary.json")
