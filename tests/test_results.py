@@ -6,7 +6,7 @@ import meshio
 import numpy as np
 import pytest
 
-from multilayer.results.folder import ResultsFolder
+from multilayer.results.folder import ResultsError, ResultsFolder
 
 
 def read_rows(path):
@@ -99,3 +99,31 @@ def test_snapshots_of_every_wall_have_the_same_fields_and_the_fluid_is_not_moved
         fluid = meshio.read(out / "fluid_000002.vtu")
         assert sorted(fluid.point_data) == ["pressure", "velocity"]  # the points are already deformed
     assert fields["pulse-koiter"] == fields["pulse-koiter-thick"] == ["displacement", "velocity"]
+
+
+def test_the_manifest_lists_each_snapshot_before_it_is_written_and_is_rewritten_rarely(tmp_path, monkeypatch):
+    out = ResultsFolder(tmp_path / "m")
+    writes = []
+    real = ResultsFolder._write_manifest
+    monkeypatch.setattr(ResultsFolder, "_write_manifest", lambda self: (writes.append(1), real(self))[1])
+    points, cells = square()
+    steps = range(0, 3000, 10)
+    for step in steps:
+        out.snapshot("wall", points, cells, t=step * 1e-4, step=step)
+        assert f"wall_{step:06d}.vtu" in json.loads((out.path / "manifest.json").read_text())["files"]
+    assert len(writes) <= 12  # O(log n) rewrites: the next snapshots are claimed ahead
+    out.release()  # the ones claimed ahead and not written are dropped
+    listed = {f for f in json.loads((out.path / "manifest.json").read_text())["files"] if f.endswith(".vtu")}
+    assert listed == {f"wall_{s:06d}.vtu" for s in steps} == {p.name for p in out.path.glob("*.vtu")}
+
+
+def test_a_snapshot_never_overwrites_a_file_the_run_did_not_write(tmp_path):
+    (tmp_path / "line_000030.vtu").write_bytes(b"mine")
+    out = ResultsFolder(tmp_path, force=True)  # not a results folder: --force
+    points, cells = square()
+    for step in (0, 10, 20):
+        out.snapshot("line", points, cells, step=step)
+    with pytest.raises(ResultsError, match="line_000030.vtu was not written by this run"):
+        out.snapshot("line", points, cells, step=30)
+    assert (tmp_path / "line_000030.vtu").read_bytes() == b"mine"
+    out.release()

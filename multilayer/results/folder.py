@@ -7,23 +7,17 @@ overwrites only the closing tags, so a snapshot costs the same however many
 came before), and ``summary.json`` has its room reserved on disk when the
 run starts, so it is written even when the disk fills up.
 
-A folder owns only what it wrote.  ``manifest.json`` lists every file the
-run owns: its files of fixed names (:data:`FIXED`, claimed when it starts,
-written or not) and each snapshot (added before it is written).  A new run
-into the folder deletes the files of the previous manifest and nothing
-else; a resume drops only the manifest's snapshots after its checkpoint.
-A file the run would write that the manifest does not list (a user's
-``energy.png``) stops the run before anything is touched.  No file is opened
-through a symbolic link (``O_NOFOLLOW``), and every file rewritten whole is
-written to a fresh ``.<name>.<8 hex>.tmp`` (``O_CREAT | O_EXCL``) and renamed
-over the old one.
-
-A folder is held by one run at a time: ``.lock``, an exclusive
-``flock`` with the holder's PID and host in it.  The lock goes away with its
-process, so the lock file of a run that died is taken over; a live holder
-makes the run refuse, naming its PID.  A new run (``fresh``) refuses a
-dangerous folder unless ``force``: the current directory, ``/``, the home
-folder, and a non-empty folder that is not a results folder of multilayer.
+A folder owns only what it wrote: ``manifest.json`` lists its files of
+fixed names (:data:`FIXED`, claimed when it starts) and each snapshot
+(listed before it is written, with the next ones at its stride: O(log n)
+rewrites; those not reached are dropped at the end).  A new run deletes
+the previous manifest's files, nothing else; a resume drops only its
+snapshots after the checkpoint; a file of a run's name it did not write
+stops the run.  Nothing is opened through a symbolic link (``O_NOFOLLOW``);
+whole rewrites go to a new ``.<name>.<8 hex>.tmp`` (``O_EXCL``), renamed.
+One run at a time: ``.lock``, ``flock``'d, with PID and host (a dead
+holder's is taken over).  A new run refuses the current directory, ``/``,
+home and a non-empty foreign folder unless ``force``.
 """
 
 from __future__ import annotations
@@ -40,7 +34,7 @@ import secrets
 import socket
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
 from xml.sax.saxutils import quoteattr
@@ -222,16 +216,11 @@ def may_write(folder: Path | str, name: str) -> bool:
 
 
 def _names(folder: Path) -> list[str]:
-    try:
-        return os.listdir(folder)
-    except FileNotFoundError:
-        return []
+    return os.listdir(folder) if folder.is_dir() else []
 
 
-def _is_ours_in_passing(name: str) -> bool:
-    """The lock and this module's temporaries of fixed names: what another run's start leaves in an empty folder."""
-    m = _TEMP.fullmatch(name)
-    return name == LOCK or (m is not None and m[1] in (MANIFEST, *FIXED))
+def _is_ours_in_passing(name: str) -> bool:  # what another run's start leaves in an empty folder
+    return name == LOCK or ((m := _TEMP.fullmatch(name)) is not None and m[1] in (MANIFEST, *FIXED))
 
 
 def _dangerous(path: Path) -> str:
@@ -281,6 +270,8 @@ class ResultsFolder:
     def __init__(self, out: Path | str, fresh: bool = True, force: bool = False):
         self._lock_fd: int | None = None
         self._owned: set[str] = set()
+        self._ahead: set[str] = set()  # snapshots claimed before their step came (see _claim_snapshot)
+        self._last: dict[str, tuple[int, int]] = {}  # per collection: its last snapshot's step, snapshots claimed
         self._snapshots: dict[str, list[tuple[float, str]]] = {}
         if isinstance(out, str) and not out.strip():
             raise ResultsError("--out is empty: name the results folder")
@@ -346,6 +337,14 @@ class ResultsFolder:
         fd, self._lock_fd = getattr(self, "_lock_fd", None), None
         if fd is None:
             return
+        unwritten = {name for name in self._ahead if not os.path.lexists(self.path / name)}
+        if unwritten:  # the snapshots claimed ahead that the run did not reach
+            self._owned -= unwritten
+            self._ahead.clear()
+            try:
+                self._write_manifest()
+            except ResultsError:
+                pass
         lock = self.path / LOCK
         try:
             if os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False)):
@@ -355,10 +354,8 @@ class ResultsFolder:
         os.close(fd)  # unlocks
 
     def __del__(self) -> None:
-        try:
+        with suppress(Exception):  # the interpreter may be shutting down
             self.release()
-        except Exception:  # the interpreter is shutting down
-            pass
 
     # -- what the folder owns -----------------------------------------------------
     def _take_over(self, fresh: bool, force: bool) -> None:
@@ -394,8 +391,7 @@ class ResultsFolder:
             raise ResultsError(f"cannot remove {self.path / name}: {exc.strerror or exc}") from None
 
     def _write_manifest(self) -> None:
-        manifest = {"format": FORMAT, "about": "the files a run of multilayer owns here: only these are "
-                    "ever deleted or overwritten", "files": sorted(self._owned - {MANIFEST})}
+        manifest = {"format": FORMAT, "files": sorted(self._owned - {MANIFEST})}
         try:
             _write_atomically(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
         except OSError as exc:
@@ -410,10 +406,33 @@ class ResultsFolder:
             self._write_manifest()
         return self.path / name
 
-    @property
-    def owned(self) -> frozenset[str]:
-        """The names the manifest lists (the manifest itself included)."""
-        return frozenset(self._owned | {MANIFEST})
+    def _claim_snapshot(self, name: str, step: int) -> Path:
+        """:meth:`claim` ``<name>_<step>.vtu``, and the next ones at the same stride, as many as claimed so far.
+
+        The manifest is rewritten O(log n) times for n snapshots, not n
+        times; :meth:`release` drops from it the claimed ones not written.
+        """
+        file = f"{name}_{step:06d}.vtu"
+        self._ahead.discard(file)
+        last, claimed = self._last.get(name, (None, 0))
+        self._last[name] = (step, claimed)
+        if file in self._owned:
+            return self.path / file
+        if os.path.lexists(self.path / file):
+            raise ResultsError(f"{self.path / file} was not written by this run: not overwritten")
+        stride = step - last if last is not None and step > last else 0
+        new = [file]
+        for k in range(1, min(max(claimed, 1), 4096) + 1 if stride else 1):
+            if step + k * stride > 999999:
+                break
+            ahead = f"{name}_{step + k * stride:06d}.vtu"
+            if ahead not in self._owned and not os.path.lexists(self.path / ahead):
+                new.append(ahead)
+                self._ahead.add(ahead)
+        self._owned.update(new)
+        self._last[name] = (step, claimed + len(new))
+        self._write_manifest()
+        return self.path / file
 
     def _reserve_summary(self) -> None:
         path = self.claim("summary.json")
@@ -472,7 +491,7 @@ class ResultsFolder:
         file = f"{name}_{step:06d}.vtu"
         collection = self.claim(f"{name}.pvd")
         mesh = meshio.Mesh(points, dict(cells), point_data=data)
-        _write_with(self.claim(file), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
+        _write_with(self._claim_snapshot(name, step), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
         entries = self._snapshots.setdefault(name, [])
         entries.append((float(t), file))
         _append_to_collection(collection, entries)
