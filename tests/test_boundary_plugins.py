@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 import pytest
-from runs import CASES
+from runs import CASES, run_case_file
 
 from multilayer.boundary.contract import BoundaryCondition, EndTraction
 from multilayer.case.casefile import load_case
@@ -22,8 +22,6 @@ from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.records import BoundaryPlugin, Param
 from multilayer.plugin.registry import Registry
-from multilayer.results.reading import read_run
-from multilayer.runner.loop import run_case
 
 
 class Resistance(BoundaryCondition):
@@ -63,8 +61,7 @@ COUPLERS = [
 
 
 def run(tmp_path, case, *sets):
-    result = run_case(load_case(CASES / f"{case}.toml", sets, REGISTRY), tmp_path, REGISTRY)
-    return result, read_run("run", tmp_path)
+    return run_case_file(case, tmp_path, *sets, registry=REGISTRY)
 
 
 @pytest.mark.parametrize("coupler", COUPLERS)

@@ -12,15 +12,12 @@ Q(t): tests/test_fluid_womersley.py.
 
 import numpy as np
 import pytest
-from runs import CASES
+from runs import CASES, assert_resume_is_bit_identical, run_case_file
 from test_boundary_plugins import TINY
 
 from multilayer.case.casefile import load_case
-from multilayer.commands.main import main
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
-from multilayer.results.reading import read_run
-from multilayer.runner.loop import run_case
 
 REGISTRY = Registry.load()
 L, R, MU = 6.0, 0.5, 0.035  # cases/poiseuille-rigid.toml
@@ -38,8 +35,7 @@ COUPLERS = [
 
 
 def run(tmp_path, case, *sets):
-    result = run_case(load_case(CASES / f"{case}.toml", sets, REGISTRY), tmp_path, REGISTRY)
-    return result, read_run("run", tmp_path)
+    return run_case_file(case, tmp_path, *sets, registry=REGISTRY)
 
 
 def test_a_prescribed_flow_through_a_rigid_channel_is_poiseuille_to_round_off(tmp_path):
@@ -138,16 +134,4 @@ def test_a_flow_rate_at_both_ends_of_a_rigid_channel_is_refused(tmp_path):
 def test_a_run_with_a_flow_rate_inlet_resumes_bit_identical(tmp_path):
     """λ is the flow-rate end's state: a run resumed from its checkpoint writes the same bytes as one that ran
     through (with the same checkpoints)."""
-    def argv(out, end):
-        a = ["run", str(CASES / "pulse-koiter.toml"), "--out", str(out), "--quiet", "--no-plots",
-             "--checkpoint-every", "10"]
-        for s in (*TINY, f"time.end={end}", f"loads.inlet={{kind=\"flow-rate\",flow={PULSE}}}"):
-            a += ["--set", s]
-        return a
-
-    full, half = tmp_path / "full", tmp_path / "half"
-    assert main(argv(full, 0.004)) == 0
-    assert main(argv(half, 0.002)) == 0
-    assert main(["resume", str(half), "--until", "0.004", "--quiet", "--no-plots"]) == 0
-    for name in ("series.csv", "eta_lumen.csv"):
-        assert (full / name).read_bytes() == (half / name).read_bytes(), name
+    assert_resume_is_bit_identical(tmp_path, "pulse-koiter", *TINY, f"loads.inlet={{kind=\"flow-rate\",flow={PULSE}}}")

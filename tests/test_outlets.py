@@ -6,17 +6,13 @@ before the end: what is left is what the outlet sent back.
 """
 
 import numpy as np
-from runs import CASES
-
-from multilayer.case.casefile import load_case
-from multilayer.results.reading import read_run
-from multilayer.runner.loop import run_case
+from runs import run_case_file
 
 
 def run(tmp_path, case, *sets):
-    result = run_case(load_case(CASES / f"{case}.toml", sets), tmp_path)
+    result, data = run_case_file(case, tmp_path, *sets)
     assert result.status == "ok", result.reason
-    return read_run(tmp_path.name, tmp_path).series
+    return data.series
 
 
 def test_a_resistance_matched_to_the_impedance_absorbs_the_pulse(tmp_path):

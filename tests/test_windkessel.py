@@ -15,22 +15,18 @@ import math
 
 import numpy as np
 import pytest
-from runs import CASES
+from runs import CASES, assert_resume_is_bit_identical, run_case_file
 
 from multilayer.case.casefile import load_case
-from multilayer.commands.main import main
 from multilayer.numerics.timescheme import SCHEMES
 from multilayer.plugin.problems import CaseError
-from multilayer.results.reading import read_run
-from multilayer.runner.loop import run_case
 from multilayer_plugins.windkessel import CapacitorState, Windkessel
 
 L, P_IN = 6.0, 10.0
 
 
 def run(tmp_path, case, *sets):
-    result = run_case(load_case(CASES / f"{case}.toml", sets), tmp_path)
-    return result, read_run("run", tmp_path)
+    return run_case_file(case, tmp_path, *sets)
 
 
 def rcr(proximal, capacitance, distal, distal_pressure=0.0):
@@ -169,16 +165,4 @@ def test_bad_windkessel_parameters_are_clear_errors():
 def test_a_run_with_an_rcr_outlet_resumes_bit_identical(tmp_path):
     """The capacitor's pressure is part of the fluid's state: a checkpoint carries it, and a run resumed from
     its checkpoint writes the same bytes as one that ran through (with the same checkpoints)."""
-    def argv(out, end):
-        a = ["run", str(CASES / "pulse-koiter.toml"), "--out", str(out), "--quiet", "--no-plots",
-             "--checkpoint-every", "10"]
-        for s in (*TINY, f"time.end={end}", WINDKESSEL):
-            a += ["--set", s]
-        return a
-
-    full, half = tmp_path / "full", tmp_path / "half"
-    assert main(argv(full, 0.004)) == 0
-    assert main(argv(half, 0.002)) == 0
-    assert main(["resume", str(half), "--until", "0.004", "--quiet", "--no-plots"]) == 0
-    for name in ("series.csv", "eta_lumen.csv"):
-        assert (full / name).read_bytes() == (half / name).read_bytes(), name
+    assert_resume_is_bit_identical(tmp_path, "pulse-koiter", *TINY, WINDKESSEL)
