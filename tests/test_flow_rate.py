@@ -26,6 +26,8 @@ PULSE = '{kind="cosine-pulse",amplitude=20.0,duration=0.003}'
 COUPLERS = [
     '"kinematic-splitting"',
     '{model="kinematic-splitting",scheme="crank-nicolson",beta=1.0}',
+    '{model="kinematic-splitting",beta=1.0}',
+    '{model="kinematic-splitting",scheme="crank-nicolson"}',
     '{model="monolithic",scheme="backward-euler"}',
     '{model="monolithic",scheme="crank-nicolson"}',
     '{model="monolithic",scheme="bdf2"}',

@@ -120,6 +120,8 @@ WINDKESSEL = rcr(888.0, 1e-5, 8880.0, 100.0)
 COUPLERS = [
     '"kinematic-splitting"',
     '{model="kinematic-splitting",scheme="crank-nicolson",beta=1.0}',
+    '{model="kinematic-splitting",beta=1.0}',
+    '{model="kinematic-splitting",scheme="crank-nicolson"}',
     '{model="monolithic",scheme="backward-euler"}',
     '{model="monolithic",scheme="crank-nicolson"}',
     '{model="monolithic",scheme="bdf2"}',
