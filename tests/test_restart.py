@@ -179,14 +179,14 @@ def test_an_unusable_folder_is_refused_before_any_work(tmp_path, capsys):
 
 
 def test_summary_is_written_when_the_disk_is_full(tmp_path, monkeypatch):
-    real = multilayer.results.folder._write_atomically
+    real = multilayer.results.files.write_atomically
 
     def full_disk(path, text):
         if path.name == "summary.json":
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(path, text)
 
-    monkeypatch.setattr(multilayer.results.folder, "_write_atomically", full_disk)
+    monkeypatch.setattr(multilayer.results.folder, "write_atomically", full_disk)
     out = tmp_path / "full"
     assert main(argv(out, "time.end=0.001")) == 0
     summary = json.loads((out / "summary.json").read_text())

@@ -20,7 +20,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from multilayer.results.folder import atomic_file, may_write
+from multilayer.results.files import atomic_file
+from multilayer.results.folder import may_write
 from multilayer.results.reading import lumen_eta, read_run
 
 #: what each probe quantity is, and its unit (CGS)

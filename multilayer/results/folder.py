@@ -22,32 +22,34 @@ home and a non-empty foreign folder unless ``force``.
 
 from __future__ import annotations
 
-import csv
 import errno
-import fcntl
-import io
 import json
 import math
 import os
 import re
-import secrets
-import socket
-import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from contextlib import contextmanager, suppress
+from collections.abc import Mapping, Sequence
+from contextlib import suppress
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
 
+from multilayer.results import lock
+from multilayer.results.files import (
+    ResultsError,
+    SeriesWriter,
+    open_nofollow,
+    write_atomically,
+    write_with,
+)
+from multilayer.results.lock import LOCK
+
 #: the list of the files a run owns
 MANIFEST = "manifest.json"
 #: what ``manifest.json`` says it is
 FORMAT = "multilayer results folder"
-#: the lock of the folder (``flock``; the holder's PID and host in it)
-LOCK = ".lock"
 #: the figures of a run (:mod:`multilayer.results.figures`)
 FIGURES = ("eta_spacetime.png", "probes.png", "energy.png")
 #: the files of fixed names a run may write: all claimed in the manifest when it starts
@@ -56,114 +58,6 @@ FIXED = ("summary.json", "series.csv", "eta_lumen.csv", "checkpoint.json", "chec
 #: a temporary of this module: ``.<name>.<8 hex digits>.tmp``
 _TEMP = re.compile(r"\.(.+)\.[0-9a-f]{8}\.tmp")
 _SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
-_NOFOLLOW = os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0)
-
-
-def _cell(value: Any) -> Any:
-    if isinstance(value, float | np.floating):
-        return repr(float(value))  # shortest text that reads back to the same double
-    return value
-
-
-class ResultsError(Exception):
-    """The results folder cannot be used (not writable, held by another run, not ours); the message says why."""
-
-
-# -- files that are never opened through a link --------------------------------------------------------------
-def _open(path: Path, flags: int, mode: str) -> IO:
-    """``open`` of ``path`` that refuses a symbolic link (``O_NOFOLLOW``)."""
-    try:
-        fd = os.open(path, flags | _NOFOLLOW, 0o666)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise ResultsError(f"{path} is a symbolic link: not followed, not written") from None
-        raise
-    return os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {}))
-
-
-def _new_temp(path: Path) -> tuple[int, Path]:
-    """A new, empty ``.<name>.<8 hex>.tmp`` next to ``path`` (``O_CREAT | O_EXCL``: never an existing file)."""
-    for _ in range(100):
-        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
-        try:
-            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666), tmp
-        except FileExistsError:
-            continue
-    raise ResultsError(f"no free temporary name next to {path}")
-
-
-@contextmanager
-def atomic_file(path: Path | str, mode: str = "wb") -> Iterator[IO]:
-    """A new file that replaces ``path`` when the block ends without an error (none is left otherwise).
-
-    The file is a fresh temporary (``O_CREAT | O_EXCL``), renamed over
-    ``path``: a symbolic link at ``path`` is replaced, never followed.
-    """
-    path = Path(path)
-    fd, tmp = _new_temp(path)
-    try:
-        with os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})) as f:
-            yield f
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def _write_atomically(path: Path, text: str) -> None:
-    with atomic_file(path, "w") as f:
-        f.write(text)
-
-
-def _write_with(path: Path, write: Callable[[Path], None]) -> None:
-    """``write(name)`` a file by its name (a library that opens it itself), atomically as :func:`atomic_file`."""
-    fd, tmp = _new_temp(path)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-class SeriesWriter:
-    """Appends rows to a CSV file, header first, each row on disk before ``append`` returns.
-
-    With ``keep_until`` (a resumed run) the file is kept, cut after the last row
-    whose ``step`` is ≤ ``keep_until``, and must have the same columns.
-    """
-
-    def __init__(self, path: Path, columns: Sequence[str], keep_until: int | None = None):
-        self.path = path
-        self.columns = list(columns)
-        self._known = frozenset(self.columns)
-        if keep_until is not None and path.is_file() and not path.is_symlink():
-            self._cut(keep_until)
-            return
-        _write_atomically(self.path, _csv([self.columns]))
-
-    def _cut(self, step: int) -> None:
-        with _open(self.path, os.O_RDONLY, "r") as f:
-            rows = list(csv.reader(f))
-        if not rows or rows[0] != self.columns:
-            raise ResultsError(f"{self.path} does not have the columns of this run: cannot resume into it")
-        kept = [r for r in rows[1:] if r and int(float(r[0])) <= step]
-        _write_atomically(self.path, _csv([rows[0], *kept]))
-
-    def append(self, row: Mapping[str, Any]) -> None:
-        """Write one row; a column the row lacks is left empty, an unknown key is an error."""
-        unknown = row.keys() - self._known
-        if unknown:
-            raise KeyError(f"not columns of {self.path.name}: {sorted(unknown)}")
-        with _open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, "a") as f:
-            f.write(_csv([[_cell(row.get(c, "")) for c in self.columns]]))
-
-
-def _csv(rows: Iterable[Sequence[Any]]) -> str:
-    text = io.StringIO(newline="")
-    csv.writer(text).writerows(rows)
-    return text.getvalue()
 
 
 def _jsonable(value: Any) -> Any:
@@ -188,7 +82,7 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     """
     folder = Path(folder)
     try:
-        with _open(folder / MANIFEST, os.O_RDONLY, "r") as f:
+        with open_nofollow(folder / MANIFEST, os.O_RDONLY, "r") as f:
             manifest = json.load(f)
     except (OSError, ValueError, ResultsError):
         manifest = None
@@ -197,7 +91,7 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     if manifest is not None or (folder / MANIFEST).is_symlink():
         return None  # someone else's manifest.json
     try:
-        with _open(folder / "summary.json", os.O_RDONLY, "r") as f:
+        with open_nofollow(folder / "summary.json", os.O_RDONLY, "r") as f:
             summary = json.load(f)
     except (OSError, ValueError, ResultsError):
         return None
@@ -296,41 +190,8 @@ class ResultsFolder:
 
     # -- holding the folder ---------------------------------------------------
     def _hold(self) -> None:
-        """Take ``.lock`` (``flock``, our PID and host in it); refuse a folder a live run holds."""
-        lock = self.path / LOCK
-        for _ in range(1000):
-            try:
-                fd = os.open(lock, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
-            except OSError as exc:
-                if exc.errno == errno.ELOOP:
-                    raise ResultsError(f"{lock} is a symbolic link, not a lock of multilayer: remove it") from None
-                raise ResultsError(f"the results folder {self.path} is not writable: {exc.strerror or exc}") from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError as exc:
-                holder = _holder(fd) if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES) else ""
-                os.close(fd)
-                if holder is None:
-                    continue  # the holder released it meanwhile: try again
-                raise ResultsError(f"{self.path} is in use by another run ({holder or exc.strerror}); "
-                                   f"choose another --out") from None
-            try:  # a releasing run unlinks the lock before unlocking it: ours must be the one in the folder
-                same = os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False))
-            except FileNotFoundError:
-                same = False
-            if not same:
-                os.close(fd)
-                continue
-            recorded = os.pread(fd, 256, 0).decode(errors="replace").split()
-            if _live_elsewhere(recorded):  # a lock file of a run that took it without flock
-                os.close(fd)
-                raise ResultsError(f"{self.path} is in use by another run (PID {recorded[0]}); choose another "
-                                   f"--out, or remove {lock} if that process is not a run")
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()} {socket.gethostname()}\n".encode(), 0)
-            self._lock_fd = fd
-            return
-        raise ResultsError(f"could not take {lock}: it keeps changing")
+        """Take ``.lock`` (:mod:`multilayer.results.lock`); refuse a folder a live run holds."""
+        self._lock_fd = lock.take(self.path)
 
     def release(self) -> None:
         """Give the folder up (the run is over): ``.lock`` is removed."""
@@ -345,13 +206,7 @@ class ResultsFolder:
                 self._write_manifest()
             except ResultsError:
                 pass
-        lock = self.path / LOCK
-        try:
-            if os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False)):
-                lock.unlink()
-        except OSError:
-            pass
-        os.close(fd)  # unlocks
+        lock.release(self.path, fd)
 
     def __del__(self) -> None:
         with suppress(Exception):  # the interpreter may be shutting down
@@ -393,7 +248,7 @@ class ResultsFolder:
     def _write_manifest(self) -> None:
         manifest = {"format": FORMAT, "files": sorted(self._owned - {MANIFEST})}
         try:
-            _write_atomically(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
+            write_atomically(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
         except OSError as exc:
             raise ResultsError(f"cannot write in the results folder {self.path}: {exc.strerror or exc}") from None
 
@@ -438,7 +293,7 @@ class ResultsFolder:
         path = self.claim("summary.json")
         placeholder = json.dumps({"status": "running", "pid": os.getpid()})
         try:
-            with _open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, "w") as f:
+            with open_nofollow(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, "w") as f:
                 f.write(placeholder + " " * (self.RESERVE - len(placeholder) - 1) + "\n")
         except OSError as exc:
             raise ResultsError(f"cannot write in the results folder {self.path}: {exc.strerror or exc}") from None
@@ -454,7 +309,7 @@ class ResultsFolder:
             self._write_manifest()
         for name, entries in snapshots.items():
             self._snapshots[name] = [(float(t), file) for t, file in entries]
-            _write_atomically(self.claim(f"{name}.pvd"), _pvd(self._snapshots[name]))
+            write_atomically(self.claim(f"{name}.pvd"), _pvd(self._snapshots[name]))
 
     @property
     def snapshots(self) -> dict[str, list[tuple[float, str]]]:
@@ -491,7 +346,7 @@ class ResultsFolder:
         file = f"{name}_{step:06d}.vtu"
         collection = self.claim(f"{name}.pvd")
         mesh = meshio.Mesh(points, dict(cells), point_data=data)
-        _write_with(self._claim_snapshot(name, step), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
+        write_with(self._claim_snapshot(name, step), lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
         entries = self._snapshots.setdefault(name, [])
         entries.append((float(t), file))
         _append_to_collection(collection, entries)
@@ -500,7 +355,7 @@ class ResultsFolder:
     def write_json(self, name: str, data: Mapping[str, Any]) -> Path:
         """Write ``name`` as indented JSON (numpy scalars and arrays converted)."""
         path = self.claim(name)
-        _write_atomically(path, json.dumps(data, indent=2, default=_jsonable, allow_nan=True) + "\n")
+        write_atomically(path, json.dumps(data, indent=2, default=_jsonable, allow_nan=True) + "\n")
         return path
 
     def write_summary(self, summary: Mapping[str, Any]) -> Path:
@@ -508,14 +363,14 @@ class ResultsFolder:
         text = json.dumps(summary, indent=2, default=_jsonable, allow_nan=True) + "\n"
         path = self.claim("summary.json")
         try:
-            _write_atomically(path, text)
+            write_atomically(path, text)
         except OSError as exc:
             if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
                 raise
             compact = json.dumps(summary, default=_jsonable, allow_nan=True)
             if len(compact.encode()) >= self.RESERVE:  # keep what matters
                 compact = json.dumps({k: summary[k] for k in ("status", "reason", "steps") if k in summary})
-            with _open(path, os.O_RDWR, "r+") as f:  # the reserved blocks: no new space needed
+            with open_nofollow(path, os.O_RDWR, "r+") as f:  # the reserved blocks: no new space needed
                 f.write(compact)
                 f.truncate()
         return path
@@ -524,23 +379,6 @@ class ResultsFolder:
 def _not_ours(path: Path) -> str:
     return (f"--out {path} is not empty and not a results folder of multilayer (no {MANIFEST}): choose another "
             f"--out, or --force to write into it (the run touches only its own files)")
-
-
-def _holder(fd: int) -> str | None:
-    """Who holds the lock ``fd`` is open on: 'PID n on host h'; None when nobody does any more."""
-    for _ in range(50):
-        text = os.pread(fd, 256, 0).decode(errors="replace").split()
-        if text:
-            pid = text[0]
-            host = text[1] if len(text) > 1 else ""
-            return f"PID {pid}" + (f" on {host}" if host and host != socket.gethostname() else "")
-        try:  # not written yet, or the holder is gone
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            time.sleep(0.002)
-            continue
-        return None
-    return "PID unknown"
 
 
 _PVD_HEAD = '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n  <Collection>\n'
@@ -560,37 +398,17 @@ def _pvd(entries: Sequence[tuple[float, str]]) -> str:
 def _append_to_collection(path: Path, entries: Sequence[tuple[float, str]]) -> None:
     """Add the last entry to the collection at ``path``: overwrite the closing tags only (O(1))."""
     if len(entries) == 1 or not path.is_file() or path.is_symlink():
-        _write_atomically(path, _pvd(entries))
+        write_atomically(path, _pvd(entries))
         return
-    with _open(path, os.O_RDWR, "r+b") as f:
+    with open_nofollow(path, os.O_RDWR, "r+b") as f:
         f.seek(-len(_PVD_TAIL.encode()), os.SEEK_END)
         f.write((_dataset(*entries[-1]) + _PVD_TAIL).encode())
-
-
-def _live_elsewhere(recorded: Sequence[str]) -> bool:
-    """True when a lock's text (``PID [host]``) names a live process of this host other than us."""
-    try:
-        pid = int(recorded[0]) if recorded else 0
-    except ValueError:
-        return False
-    host = recorded[1] if len(recorded) > 1 else socket.gethostname()
-    return pid > 0 and pid != os.getpid() and host == socket.gethostname() and _alive(pid)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # someone else's process: alive
-        return True
-    return True
 
 
 def holds_finished_run(folder: Path, digest: str) -> bool:
     """True when ``folder`` holds a run of the case with ``digest`` that ended ok (its ``summary.json`` says so)."""
     try:
-        with _open(Path(folder) / "summary.json", os.O_RDONLY, "r") as f:
+        with open_nofollow(Path(folder) / "summary.json", os.O_RDONLY, "r") as f:
             summary = json.load(f)
     except (OSError, ValueError, ResultsError):
         return False
