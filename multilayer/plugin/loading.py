@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
+from multilayer.plugin.interrupts import UserInterrupt
 from multilayer.plugin.registry import Registry, RegistryError, import_failure
 
 
@@ -31,6 +32,8 @@ def import_plugin(spec: str) -> ModuleType:
         if "" not in sys.path and str(Path.cwd()) not in sys.path:
             sys.path.insert(0, str(Path.cwd()))
         return importlib.import_module(spec)
+    except UserInterrupt:  # Ctrl-C while loading: the command stops
+        raise
     except (Exception, SystemExit, KeyboardInterrupt) as exc:  # a user's module: anything means "cannot load it"
         raise RegistryError(f"--plugin {spec}: cannot import it ({import_failure(exc)})") from None
 

@@ -26,6 +26,7 @@ import attrs
 import pluggy
 
 from multilayer.plugin import hookspecs
+from multilayer.plugin.interrupts import UserInterrupt
 from multilayer.plugin.records import PluginRecord, Registered
 
 HOOKS = {
@@ -87,6 +88,8 @@ def _load_entry_points(pm: pluggy.PluginManager) -> tuple[dict[int, tuple[str, s
             try:
                 plugin = ep.load()
                 pm.register(plugin, name=ep.name)
+            except UserInterrupt:  # Ctrl-C while loading: the command stops
+                raise
             except (Exception, SystemExit, KeyboardInterrupt) as exc:  # a third party's module: "cannot load it"
                 failed.append(FailedPlugin(ep.name, ep.value, f"{name} {version}", import_failure(exc)))
                 continue

@@ -37,7 +37,7 @@ class ResultsError(Exception):
 
 
 # -- files that are never opened through a link --------------------------------------------------------------
-def open_nofollow(path: Path, flags: int, mode: str) -> IO:
+def open_nofollow(path: Path, flags: int, mode: str, **kwargs: Any) -> IO:
     """``open`` of ``path`` that refuses a symbolic link (``O_NOFOLLOW``)."""
     try:
         fd = os.open(path, flags | NOFOLLOW, 0o666)
@@ -45,7 +45,7 @@ def open_nofollow(path: Path, flags: int, mode: str) -> IO:
         if exc.errno == errno.ELOOP:
             raise ResultsError(f"{path} is a symbolic link: not followed, not written") from None
         raise
-    return os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {}))
+    return os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {}), **kwargs)
 
 
 def new_temp(path: Path) -> tuple[int, Path]:
@@ -72,9 +72,16 @@ def atomic_file(path: Path | str, mode: str = "wb") -> Iterator[IO]:
         with os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})) as f:
             yield f
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        _name(exc, path)
         raise
+
+
+def _name(exc: BaseException, path: Path) -> None:
+    """Name ``path`` in an OSError that names no file (a write to a descriptor: the disk is full)."""
+    if isinstance(exc, OSError) and (exc.filename is None or str(exc.filename).endswith(".tmp")):
+        exc.filename = str(path)
 
 
 def write_atomically(path: Path, text: str) -> None:
@@ -89,8 +96,9 @@ def write_with(path: Path, write: Callable[[Path], None]) -> None:
     try:
         write(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        _name(exc, path)
         raise
 
 
@@ -105,6 +113,7 @@ class SeriesWriter:
         self.path = path
         self.columns = list(columns)
         self._known = frozenset(self.columns)
+        self._before_last: int | None = None  # the file's size before the last row appended
         if keep_until is not None and path.is_file() and not path.is_symlink():
             self._cut(keep_until)
             return
@@ -119,12 +128,34 @@ class SeriesWriter:
         write_atomically(self.path, _csv([rows[0], *kept]))
 
     def append(self, row: Mapping[str, Any]) -> None:
-        """Write one row; a column the row lacks is left empty, an unknown key is an error."""
+        """Write one row, whole or not at all; a column the row lacks is left empty, an unknown key is an error.
+
+        When the row cannot be written (a full disk), what reached the file
+        of it is cut off again (cutting needs no space) and the OSError,
+        naming the file, is raised: the file still ends on its last whole row.
+        """
         unknown = row.keys() - self._known
         if unknown:
             raise KeyError(f"not columns of {self.path.name}: {sorted(unknown)}")
-        with open_nofollow(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, "a") as f:
-            f.write(_csv([[_cell(row.get(c, "")) for c in self.columns]]))
+        data = _csv([[_cell(row.get(c, "")) for c in self.columns]]).encode()
+        with open_nofollow(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, "ab", buffering=0) as f:
+            fd = f.fileno()
+            end = os.fstat(fd).st_size
+            try:
+                written = 0
+                while written < len(data):
+                    written += os.write(fd, data[written:])
+            except BaseException as exc:
+                os.ftruncate(fd, end)
+                _name(exc, self.path)
+                raise
+        self._before_last = end
+
+    def undo(self) -> None:
+        """Cut the last row appended off again (its partner file could not take its row)."""
+        if self._before_last is not None:
+            os.truncate(self.path, self._before_last)
+            self._before_last = None
 
 
 def _csv(rows: Iterable[Sequence[Any]]) -> str:

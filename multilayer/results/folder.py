@@ -176,6 +176,7 @@ class ResultsFolder:
             raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
         if fresh and not force and self.path.is_dir() and _foreign(self.path):
             raise ResultsError(_not_ours(self.path))
+        created = not self.path.exists()
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -184,8 +185,15 @@ class ResultsFolder:
         try:
             self._take_over(fresh, force)
             self._reserve_summary()
-        except BaseException:
+        except BaseException:  # a full disk, a signal: nothing half-made is left
+            if created:  # every file in it is this run's
+                with suppress(OSError, ResultsError):
+                    self._remove("summary.json")
+                    self._remove(MANIFEST)
             self.release()
+            if created:
+                with suppress(OSError):
+                    self.path.rmdir()
             raise
 
     # -- holding the folder ---------------------------------------------------
@@ -295,8 +303,12 @@ class ResultsFolder:
         try:
             with open_nofollow(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, "w") as f:
                 f.write(placeholder + " " * (self.RESERVE - len(placeholder) - 1) + "\n")
-        except OSError as exc:
-            raise ResultsError(f"cannot write in the results folder {self.path}: {exc.strerror or exc}") from None
+        except BaseException as exc:  # no half-reserved summary is left
+            with suppress(OSError):
+                path.unlink()
+            if isinstance(exc, OSError):
+                raise ResultsError(f"cannot write in the results folder {self.path}: {exc.strerror or exc}") from None
+            raise
 
     def keep_until(self, step: int, snapshots: Mapping[str, Sequence[tuple[float, str]]]) -> None:
         """Resuming after ``step``: drop the snapshots written later, restore the collections."""

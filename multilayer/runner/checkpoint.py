@@ -46,7 +46,7 @@ from multilayer.case.casefile import validate_data
 from multilayer.case.model import Case
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, plugin_versions
-from multilayer.results.folder import atomic_file
+from multilayer.results.files import atomic_file
 from multilayer.scene.state import State, WallState
 from multilayer.version import __version__
 

@@ -42,6 +42,11 @@ class HeldSeries:
             raise KeyError(f"not columns of the table: {sorted(unknown)}")
         self.rows.append(dict(row))
 
+    def undo(self) -> None:
+        """Drop the last row (its partner table could not take its row)."""
+        if self.rows:
+            self.rows.pop()
+
     def arrays(self) -> dict[str, np.ndarray]:
         """Column → float array, as :func:`multilayer.results.reading.read_series` reads the file back."""
         return {c: np.array([float(r[c]) if r.get(c, "") != "" else math.nan for r in self.rows], dtype=float)

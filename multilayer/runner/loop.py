@@ -37,7 +37,7 @@ from multilayer.coupling.build import prepare
 from multilayer.coupling.contract import Coupler, SchemeFailure
 from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.registry import Registry, plugin_versions
-from multilayer.results.folder import ResultsFolder
+from multilayer.results.folder import ResultsError, ResultsFolder
 from multilayer.runner import checkpoint
 from multilayer.runner.held import HeldResults
 from multilayer.runner.stepping import (
@@ -53,7 +53,7 @@ from multilayer.scene.setup import Setup
 from multilayer.scene.state import State
 from multilayer.version import __version__
 
-__all__ = ["EnergyBound", "Interrupted", "RunFailed", "RunResult", "Tally", "check_state", "interruptible",
+__all__ = ["EnergyBound", "Interrupted", "RunFailed", "RunResult", "Signals", "Tally", "check_state", "interruptible",
            "resume_run", "run_case", "run_held"]
 
 
@@ -81,27 +81,55 @@ class Interrupted(Exception):
     """SIGINT or SIGTERM: the run stops after the current step."""
 
 
-@contextmanager
-def interruptible() -> Iterator[Callable[[], str | None]]:
-    """Catch SIGINT and SIGTERM while a run goes on; yields a function naming the signal caught (or None).
+class Signals:
+    """The SIGINT and SIGTERM a run has caught; call it for the first one's name (or None).
 
-    A first signal lets the current step finish; a second SIGINT abandons it.
-    Handlers are installed only in the main thread (elsewhere nothing changes).
+    A first signal lets the current step finish.  A second SIGINT abandons
+    the step, unless it comes while the run writes its files (:meth:`writing`)
+    or its summary (:attr:`finishing`): the run is stopping at the end of
+    this step anyway, and a write cut short would leave the folder
+    inconsistent (every file ends on the same step, the summary says what happened).
     """
-    caught: list[str] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield lambda: None
-        return
 
-    def handler(signum, frame):
+    def __init__(self) -> None:
+        self.caught: list[str] = []
+        self._writing = 0
+        self.finishing = False  #: the summary is being written: further signals are only counted
+
+    def __call__(self) -> str | None:
+        return self.caught[0] if self.caught else None
+
+    def handler(self, signum: int, frame: object) -> None:
         name = signal.Signals(signum).name
-        if caught and signum == signal.SIGINT:
+        if self.caught and signum == signal.SIGINT and not self._writing and not self.finishing:
             raise Interrupted(name)
-        caught.append(name)
+        self.caught.append(name)
 
-    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        """A write no second SIGINT cuts short (the run stops after the step it writes)."""
+        self._writing += 1
+        try:
+            yield
+        finally:
+            self._writing -= 1
+
+
+@contextmanager
+def interruptible() -> Iterator[Signals]:
+    """Catch SIGINT and SIGTERM while a run goes on; yields the :class:`Signals` caught.
+
+    Installed before the results folder is made and kept until its summary
+    is written, so a signal at any moment of a run is caught.  Handlers are
+    installed only in the main thread (elsewhere nothing changes: nothing is caught).
+    """
+    signals = Signals()
+    if threading.current_thread() is not threading.main_thread():
+        yield signals
+        return
+    old = {sig: signal.signal(sig, signals.handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield lambda: caught[0] if caught else None
+        yield signals
     finally:
         for sig, h in old.items():
             signal.signal(sig, h)
@@ -121,9 +149,11 @@ def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, c
     earlier run's files there (its checkpoint included) are removed first, nothing else.
     """
     registry = registry or Registry.load()
-    results = ResultsFolder(out, force=force)
-    with blas_threads(case.threads):
-        return _run(case, results, registry, None, checkpoint_every, progress)
+    with interruptible() as signals:
+        with signals.writing():  # a signal meanwhile: the run stops before its first step
+            results = ResultsFolder(out, force=force)
+        with blas_threads(case.threads):
+            return _run(case, results, registry, None, checkpoint_every, progress, signals)
 
 
 def run_held(case: Case, registry: Registry | None = None, *,
@@ -136,8 +166,8 @@ def run_held(case: Case, registry: Registry | None = None, *,
     """
     registry = registry or Registry.load()
     held = HeldResults()
-    with blas_threads(case.threads):
-        return _run(case, held, registry, None, 0, progress), held
+    with interruptible() as signals, blas_threads(case.threads):
+        return _run(case, held, registry, None, 0, progress, signals), held
 
 
 def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
@@ -155,19 +185,20 @@ def resume_run(out: str | Path, until: float | None = None, registry: Registry |
     registry = registry or Registry.load()
     saved = checkpoint.load(Path(out), registry, until)
     every = saved.checkpoint_every if checkpoint_every is None else checkpoint_every
-    with blas_threads(getattr(saved.case, "threads", 1)):
+    with interruptible() as signals, blas_threads(getattr(saved.case, "threads", 1)):
         try:
             with setting_up():
                 setup, coupler = prepare(saved.case, registry)
         except RunFailed as exc:
             raise checkpoint.CheckpointError(f"the checkpoint's case cannot be set up here: {exc}") from None
         state = checkpoint.restore(saved, setup, coupler)
-        results = ResultsFolder(Path(out), fresh=False)
-        return _run(saved.case, results, registry, saved, every, progress, (setup, coupler, state))
+        with signals.writing():
+            results = ResultsFolder(Path(out), fresh=False)
+        return _run(saved.case, results, registry, saved, every, progress, signals, (setup, coupler, state))
 
 
 def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, saved: checkpoint.Checkpoint | None,
-         checkpoint_every: int, progress, prepared: tuple | None = None) -> RunResult:
+         checkpoint_every: int, progress, signals: Signals, prepared: tuple | None = None) -> RunResult:
     wall_t0 = time.perf_counter()
     status, reason, crash = "ok", "", ""
     setup: Setup | None = None
@@ -175,36 +206,46 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     tally: Tally | None = saved.tally if saved is not None else None
     resumed_from = saved.tally.steps if saved is not None else None
     try:
-        with interruptible() as interrupted:
-            if prepared is not None:  # a resumed run: set up, its state rebuilt from the checkpoint
-                setup, coupler, state = prepared
-            else:
-                with setting_up():
-                    setup, coupler = prepare(case, registry)
-                    state = coupler.initial_state(setup)
-            if tally is None:
-                tally = Tally.start(setup, coupler, state)
-            probes = setup.probe_rows(case.output.probes)
+        if signals():  # caught while the folder was made
+            raise Interrupted(signals())
+        if prepared is not None:  # a resumed run: set up, its state rebuilt from the checkpoint
+            setup, coupler, state = prepared
+        else:
+            with setting_up():
+                setup, coupler = prepare(case, registry)
+                state = coupler.initial_state(setup)
+        if tally is None:
+            tally = Tally.start(setup, coupler, state)
+        probes = setup.probe_rows(case.output.probes)
+        with signals.writing():
             writers = Writers(results, setup, saved, ["step", "t", *coupler.energy(setup, state),
                                                       "energy.total", "energy.residual", "energy.relative_residual",
-                                                      *probes])
+                                                      *probes], signals)
             t_out = time.perf_counter()
             if writers.every and saved is None:
                 _snapshot(setup, state, results)
             setup.timings["output"] += time.perf_counter() - t_out
-            for step in iterate_steps(setup, coupler, state, tally, probes, writers):
-                if progress is not None:
-                    progress(tally, step.row)
-                if checkpoint_every and (step.n % checkpoint_every == 0 or interrupted()):
+        for step in iterate_steps(setup, coupler, state, tally, probes, writers):
+            if signals() is None and progress is not None:
+                progress(tally, step.row)
+            if checkpoint_every and (step.n % checkpoint_every == 0 or signals()):
+                with signals.writing():
                     checkpoint.save(results.path, case, registry, step.state, tally, results.snapshots,
                                     checkpoint_every, time.perf_counter() - wall_t0, setup)
-                if interrupted():
-                    raise Interrupted(interrupted())
+            if signals():
+                raise Interrupted(signals())
     except Interrupted as exc:
         status = "interrupted"
         reason = f"interrupted by {exc} after step {tally.steps if tally else 0} (t = {tally.t if tally else 0:.6g} s)"
     except (RunFailed, SchemeFailure) as exc:
         status, reason = "failed", str(exc)
+    except ResultsError as exc:
+        status, reason = "failed", f"{exc} (after step {tally.steps if tally else 0})"
+    except OSError as exc:  # a full disk, a file system gone: what could not be written, and when
+        where = f" {exc.filename}" if exc.filename else ""
+        status = "failed"
+        reason = (f"cannot write{where}: {exc.strerror or exc} (after step {tally.steps if tally else 0}, "
+                  f"t = {tally.t if tally else 0:.6g} s)")
     except (FloatingPointError, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
         status, reason = "failed", f"{type(exc).__name__} after step {tally.steps if tally else 0}: {exc}"
     except Exception as exc:  # a bug: still keep the results and say where
@@ -235,8 +276,11 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         **({"checkpoint": {"every": checkpoint_every, "file": checkpoint.FILE, "arrays": checkpoint.ARRAYS}}
            if checkpoint_every else {}),
     }
-    results.write_summary(summary)
-    results.release()
+    signals.finishing = True
+    try:
+        results.write_summary(summary)
+    finally:
+        results.release()
     return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks))
 
 
@@ -250,8 +294,9 @@ class Writers:
     """
 
     def __init__(self, results: ResultsFolder | HeldResults, setup: Setup, saved: checkpoint.Checkpoint | None,
-                 columns: list[str]):
+                 columns: list[str], signals: Signals):
         self.results, self.setup, self.every = results, setup, setup.case.output.every
+        self.signals = signals
         self.keep = saved.tally.steps if saved is not None else None
         if saved is not None:
             results.keep_until(self.keep, saved.snapshots)
@@ -266,20 +311,26 @@ class Writers:
                                       self.keep)
 
     def row(self, step: Step) -> None:
-        """The step's rows of ``series.csv`` and ``eta_lumen.csv``."""
+        """The step's rows of ``series.csv`` and ``eta_lumen.csv``: both written, or neither."""
         row, state = step.row, step.state
-        if self.series is None or (self._provisional and list(row) != self.series.columns):
-            self.series = self.results.series(list(row), keep_until=self.keep)
-        self._provisional = False
-        self.series.append(row)
-        if self.eta is not None:
-            eta = self.setup.eta(state, 0)[self._vertices]
-            self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
+        with self.signals.writing():
+            if self.series is None or (self._provisional and list(row) != self.series.columns):
+                self.series = self.results.series(list(row), keep_until=self.keep)
+            self._provisional = False
+            self.series.append(row)
+            if self.eta is not None:
+                eta = self.setup.eta(state, 0)[self._vertices]
+                try:
+                    self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
+                except BaseException:
+                    self.series.undo()
+                    raise
 
     def fields(self, step: Step) -> None:
         """The snapshots, every ``[output] every`` steps."""
         if self.every and step.n % self.every == 0:
-            _snapshot(self.setup, step.state, self.results)
+            with self.signals.writing():
+                _snapshot(self.setup, step.state, self.results)
 
 
 def _iterations(per_step: list[float]) -> dict[str, dict[str, float]]:
