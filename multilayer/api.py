@@ -272,7 +272,7 @@ def _held_results(held: HeldResults) -> Results:
 # -- running ------------------------------------------------------------------------------------------------
 def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_every: int = 0,
         progress: bool | Callable[[dict[str, Any]], None] | None = None, registry: Registry | None = None,
-        plots: bool = False) -> Results:
+        plots: bool = False, force: bool = False) -> Results:
     """Run ``case`` to its end time and return its :class:`Results`.
 
     Parameters
@@ -298,6 +298,11 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     plots : bool
         With ``out``: also draw the figures, as ``multilayer run`` without
         ``--no-plots`` does.
+    force : bool
+        With ``out``: write into a folder a run refuses by default (the
+        current directory, home, a non-empty folder that is not a results
+        folder), as ``multilayer run --force``; the run still touches only
+        the files it writes.
 
     Returns
     -------
@@ -311,7 +316,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     Raises
     ------
     ValueError
-        ``checkpoint_every`` or ``plots`` without ``out``.
+        ``checkpoint_every``, ``plots`` or ``force`` without ``out``.
     multilayer.results.folder.ResultsError
         When ``out`` cannot be used (not writable, held by another run).
 
@@ -324,8 +329,8 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     >>> res.status, len(res.t), res.max_relative_residual < 1e-12
     ('ok', 50, True)
     """
-    if out is None and (checkpoint_every or plots):
-        raise ValueError("checkpoints and figures need a results folder: give run(case, out=...)")
+    if out is None and (checkpoint_every or plots or force):
+        raise ValueError("checkpoints, figures and force need a results folder: give run(case, out=...)")
     registry = registry or Registry.load()
     bar = None
     callback: Callable[[Tally, dict], None] | None = None
@@ -341,7 +346,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
         if out is None:
             _, held = run_held(case, registry, progress=callback)
             return _held_results(held)
-        result = run_case(case, out, registry, checkpoint_every=checkpoint_every, progress=callback)
+        result = run_case(case, out, registry, checkpoint_every=checkpoint_every, progress=callback, force=force)
     finally:
         if bar is not None:
             bar.close()

@@ -14,6 +14,7 @@ from threadpoolctl import threadpool_info
 
 import multilayer as ml
 from multilayer import api
+from multilayer.results.folder import ResultsError
 from multilayer.case.keys import parse_value
 from multilayer.commands.main import main
 from multilayer.runner import ledger
@@ -21,7 +22,7 @@ from multilayer.runner.loop import run_case
 
 ROOT = Path(__file__).parents[1]
 CASES = ROOT / "cases"
-#: the quick start's scene on a coarse mesh, 20 steps: fluid, a thin and a thick layer, every kind of probe
+#: the composite pulse (pulse-koiter-thick) on a coarse mesh, 20 steps: fluid, a thin and a thick layer, every kind of probe
 SMALL = {"mesh.nz": 16, "mesh.nr": 3, "time.end": 0.002}
 #: a membrane pushed onto the axis: a wall-only run that fails at step 68
 COLLAPSE = {"loads.interface": -3e4, "mesh.nz": 32}
@@ -260,3 +261,17 @@ def test_run_options(tmp_path, capsys):
     assert {"checkpoint.json", "checkpoint.npz", "probes.png", "energy.png"} <= {p.name for p in (tmp_path / "cp").iterdir()}
     assert ml.run(case, progress=True).ok
     assert "step" in capsys.readouterr().err  # the progress bar
+
+
+def test_run_into_a_foreign_folder_needs_force(tmp_path):
+    """As ``multilayer run --force``: refused without it, and with it the user's file is left alone."""
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("my notes")
+    case = small_case()
+    with pytest.raises(ResultsError, match="not a results folder"):
+        ml.run(case, folder)
+    res = ml.run(case, folder, force=True)
+    assert res.ok and (folder / "notes.txt").read_text() == "my notes"
+    with pytest.raises(ValueError, match="need a results folder"):
+        ml.run(case, force=True)

@@ -291,7 +291,7 @@ EXITS = [
     ("sys-exit-3", "import sys\nsys.exit(3)\n", "sys.exit(3)"),
     ("sys-exit-message", "import sys\nsys.exit('licence expired')\n", "sys.exit('licence expired')"),
     ("raise-system-exit", "raise SystemExit\n", "sys.exit()"),
-    ("keyboard-interrupt", "raise KeyboardInterrupt\n", "KeyboardInterrupt: raised while the module was imported"),
+    ("keyboard-interrupt", "raise KeyboardInterrupt\n", "KeyboardInterrupt: raised by the module while imported"),
     ("exit-builtin", "exit(4)\n", "sys.exit(4)"),
 ]
 
@@ -302,6 +302,22 @@ def test_a_plugin_file_that_exits_at_import(tmp_path, capsys, source, fragment):
     path.write_text(source)
     refused(["validate", write(tmp_path), "--plugin", path], capsys,
             [f"plugins: --plugin {path}: cannot import it", fragment])
+
+
+HOOKS_THAT_FAIL = [
+    ("sys-exit", "sys.exit(3)", "SystemExit: the hook called sys.exit(3)"),
+    ("keyboard-interrupt", "raise KeyboardInterrupt", "KeyboardInterrupt: raised by the hook"),
+    ("error", "raise RuntimeError('no licence')", "RuntimeError: no licence"),
+]
+
+
+@pytest.mark.parametrize("body, fragment", [m[1:] for m in HOOKS_THAT_FAIL], ids=[m[0] for m in HOOKS_THAT_FAIL])
+def test_a_plugin_whose_hook_fails_when_called(tmp_path, capsys, body, fragment):
+    path = tmp_path / "failing_hook.py"
+    path.write_text("import sys\nfrom multilayer.plugin.hookspecs import hookimpl\n\n@hookimpl\n"
+                    f"def multilayer_layers():\n    {body}\n")
+    refused(["validate", write(tmp_path), "--plugin", path], capsys,
+            ["plugins: multilayer_layers of package", "failed when called", fragment])
 
 
 def test_a_plugin_module_that_exits_at_import(tmp_path, capsys, monkeypatch):

@@ -97,19 +97,20 @@ def _load_entry_points(pm: pluggy.PluginManager) -> tuple[dict[int, tuple[str, s
     return dists, failed
 
 
-def import_failure(exc: BaseException) -> str:
-    """What a plugin module raised while imported, in one line (``sys.exit`` named as such).
+def import_failure(exc: BaseException, who: str = "the module") -> str:
+    """What a plugin module raised while imported (or ``who`` else raised), in one line (``sys.exit`` named as such).
 
     >>> import_failure(SystemExit(3)), import_failure(SystemExit()), import_failure(ValueError("no"))
     ('SystemExit: the module called sys.exit(3) while imported', 'SystemExit: the module called sys.exit() while imported', 'ValueError: no')
-    >>> import_failure(KeyboardInterrupt())
-    'KeyboardInterrupt: raised while the module was imported'
+    >>> import_failure(KeyboardInterrupt()), import_failure(SystemExit(0), "the hook")
+    ('KeyboardInterrupt: raised by the module while imported', 'SystemExit: the hook called sys.exit(0)')
     """
+    when = " while imported" if who == "the module" else ""
     if isinstance(exc, SystemExit):
         code = "" if exc.code is None else repr(exc.code)
-        return f"SystemExit: the module called sys.exit({code}) while imported"
+        return f"SystemExit: {who} called sys.exit({code}){when}"
     if isinstance(exc, KeyboardInterrupt):
-        return "KeyboardInterrupt: raised while the module was imported"
+        return f"KeyboardInterrupt: raised by {who}{when}"
     return f"{type(exc).__name__}: {exc}"
 
 
@@ -199,7 +200,14 @@ class Registry:
             table: dict[str, Registered] = {}
             for impl in getattr(self.pm.hook, hook_name).get_hookimpls():
                 package, version = _distribution_of(self._dists, impl.plugin)
-                for record in impl.function() or ():
+                try:
+                    records = list(impl.function() or ())
+                except UserInterrupt:
+                    raise
+                except (Exception, SystemExit, KeyboardInterrupt) as exc:  # a third party's hook: "cannot load it"
+                    raise RegistryError(f"{hook_name} of package {package!r} ({impl.plugin_name}) failed when "
+                                        f"called: {import_failure(exc, 'the hook')}") from None
+                for record in records:
                     if not isinstance(record, PluginRecord) or record.kind != kind:
                         raise RegistryError(
                             f"{hook_name} of package {package!r} returned {record!r}; "
