@@ -274,3 +274,32 @@ def test_two_runs_started_together_one_runs_the_other_is_refused(tmp_path):
         assert sorted(codes) == [0, 2], errors
         assert "in use by another run" in errors[codes.index(2)]
         assert json.loads((out / "summary.json").read_text())["status"] == "ok"
+
+
+CAMPAIGN = ["compare", str(CASES / "membrane-mode.toml"), "--vary", "time.dt=1e-5,2e-5", "--set", "time.end=0.0003"]
+
+
+def test_a_campaign_folder_owns_only_what_it_wrote(tmp_path, capsys, monkeypatch):
+    """compare (as study, stability, sweep): a foreign folder is refused, --force writes beside the user's files
+    and never over them, the campaign run again rewrites its own reports, and a run and a campaign refuse
+    each other's folder."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes")
+    assert main([*CAMPAIGN, "--out", str(mine)]) == 2
+    assert "not a campaign folder of multilayer" in capsys.readouterr().err
+    (mine / "report.md").write_text("my report")
+    assert main([*CAMPAIGN, "--out", str(mine), "--force"]) == 2  # a report name held by the user's file
+    assert "holds report.md that no campaign of multilayer wrote" in capsys.readouterr().err
+    (mine / "report.md").unlink()
+    assert main([*CAMPAIGN, "--out", str(mine), "--force"]) == 0
+    assert (mine / "notes.txt").read_text() == "my notes"
+    owned = json.loads((mine / MANIFEST).read_text())
+    assert owned["format"] == "multilayer campaign folder"
+    assert owned["files"] == ["eta_spacetime.png", "probes.png", "report.json", "report.md"]
+    assert main([*CAMPAIGN, "--out", str(mine)]) == 0  # its own folder now: no --force needed
+    assert main(argv(mine)) == 2  # a run does not write into a campaign's folder
+    assert main([*CAMPAIGN, "--out", str(mine / "dt=1e-5")]) == 2  # nor a campaign into a run's
+    monkeypatch.chdir(tmp_path)
+    assert main([*CAMPAIGN, "--out", "."]) == 2
+    assert "is the current directory" in capsys.readouterr().err

@@ -22,6 +22,8 @@ from multilayer.campaign.executor import Job, execute
 from multilayer.campaign.measures import compare_runs
 from multilayer.campaign.variants import Variant
 from multilayer.plugin.registry import Registry
+from multilayer.results.campaign import claim
+from multilayer.results.files import write_atomically
 from multilayer.results.reading import RunData, lumen_eta, read_run, without_nan
 
 
@@ -56,10 +58,10 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
         "reference": runs[0].label,
         "variants": columns,
     }
-    (out / "report.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
-    report.plot_compared_probes(runs, out / "probes.png")
+    write_atomically(claim(out, "report.json"), json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
+    report.plot_compared_probes(runs, claim(out, "probes.png"))
     radius = (first.get("geometry") or {}).get("radius")
     fields = {run.label: lumen_eta(run.folder, radius) for run in runs} if radius else {}
-    plot_spacetime(fields, out / "eta_spacetime.png")
-    (out / "report.md").write_text(report.markdown(data))
+    plot_spacetime(fields, claim(out, "eta_spacetime.png"))
+    write_atomically(claim(out, "report.md"), report.markdown(data))
     return data

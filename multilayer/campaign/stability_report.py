@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 
 from multilayer.campaign.stability import VERDICTS
+from multilayer.results.campaign import claim
+from multilayer.results.files import write_atomically
 from multilayer.results.reading import without_nan
 
 
@@ -166,6 +168,6 @@ def plot(data: Mapping[str, Any], path: Path) -> None:
 
 def write(out: Path, data: Mapping[str, Any]) -> None:
     """``stability.json``, ``stability.md`` and ``stability.png`` of ``data`` in the folder ``out``."""
-    (out / "stability.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
-    (out / "stability.md").write_text(markdown(data))
-    plot(data, out / "stability.png")
+    write_atomically(claim(out, "stability.json"), json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
+    write_atomically(claim(out, "stability.md"), markdown(data))
+    plot(data, claim(out, "stability.png"))

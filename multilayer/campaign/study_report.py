@@ -15,6 +15,8 @@ import numpy as np
 
 from multilayer.campaign.report import cell
 from multilayer.campaign.study import BASELINE, TARGETS, dt_sequences
+from multilayer.results.campaign import claim
+from multilayer.results.files import write_atomically
 from multilayer.results.reading import without_nan
 
 ERROR_AXIS = "relative L∞ error of η (max over probes)"
@@ -145,7 +147,7 @@ def plot(data: Mapping[str, Any], out: Path) -> None:
     ax.set_ylabel(ERROR_AXIS)
     ax.set_title(f"against {data['reference']['label']}", fontsize="medium")
     ax.grid(alpha=0.3, which="both")
-    save_figure(fig, out / "pareto.png")
+    save_figure(fig, claim(out, "pareto.png"))
 
     fig = Figure(figsize=(7, 5), layout="constrained")
     ax = fig.subplots()
@@ -171,11 +173,11 @@ def plot(data: Mapping[str, Any], out: Path) -> None:
     ax.set_xlabel("Δt (s)")
     ax.set_ylabel(ERROR_AXIS)
     ax.grid(alpha=0.3, which="both")
-    save_figure(fig, out / "orders.png")
+    save_figure(fig, claim(out, "orders.png"))
 
 
 def write(out: Path, data: Mapping[str, Any]) -> None:
     """``study.json``, ``study.md``, ``pareto.png`` and ``orders.png`` of ``data`` in the folder ``out``."""
-    (out / "study.json").write_text(json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
-    (out / "study.md").write_text(markdown(data))
+    write_atomically(claim(out, "study.json"), json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
+    write_atomically(claim(out, "study.md"), markdown(data))
     plot(data, out)

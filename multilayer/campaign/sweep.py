@@ -46,6 +46,8 @@ from multilayer.case.grid import (
 )
 from multilayer.plugin.problems import MISSING, CaseError, Problem
 from multilayer.plugin.registry import Registry
+from multilayer.results.campaign import claim
+from multilayer.results.files import atomic_file, write_atomically
 from multilayer.results.folder import holds_finished_run
 from multilayer.results.reading import read_run, without_nan
 
@@ -190,7 +192,7 @@ def _columns(rows: Sequence[Mapping[str, Any]]) -> list[str]:
 def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> None:
     """``sweep.csv``: one row per run, every column of any row (empty where a run has none)."""
     columns = _columns(rows)
-    with open(path, "w", newline="") as f:
+    with atomic_file(path, "w") as f:
         writer = csv.writer(f)
         writer.writerow(columns)
         writer.writerows([["" if row.get(c) is None else row.get(c) for c in columns] for row in rows])
@@ -263,10 +265,15 @@ def plot(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], out: Path) -> l
             ax.set_visible(False)
         if len(groups) > 1 and len(groups) <= 8:
             axes[0].legend(fontsize="x-small")
-        name = f"sweep_{sanitize(key)}.png"
-        save_figure(fig, out / name)
+        name = figure_name(key)
+        save_figure(fig, claim(out, name))
         written.append(name)
     return written
+
+
+def figure_name(key: str) -> str:
+    """The file of the figure of the swept ``key``."""
+    return f"sweep_{sanitize(key)}.png"
 
 
 def write_plan(runs: Sequence[SweepRun], keys: Sequence[str], out: Path, case_file: Path,
@@ -275,11 +282,11 @@ def write_plan(runs: Sequence[SweepRun], keys: Sequence[str], out: Path, case_fi
     data = {"command": command, "case_file": str(case_file), "overrides": list(overrides), "keys": list(keys),
             "runs": [{"digest": r.digest, "folder": r.folder, "values": dict(r.values),
                       "overrides": list(r.overrides)} for r in runs]}
-    (out / "plan.json").write_text(json.dumps(without_nan(data), indent=2) + "\n")
+    write_atomically(claim(out, "plan.json"), json.dumps(without_nan(data), indent=2) + "\n")
 
 
 def write_report(out: Path, rows: Sequence[Mapping[str, Any]], keys: Sequence[str], command: str) -> None:
     """``sweep.csv``, one ``sweep_<key>.png`` per swept key and ``sweep.md`` of the :func:`collect` rows in ``out``."""
-    write_csv(rows, out / "sweep.csv")
+    write_csv(rows, claim(out, "sweep.csv"))
     figures = plot(rows, keys, out)
-    (out / "sweep.md").write_text(markdown(rows, keys, command, figures))
+    write_atomically(claim(out, "sweep.md"), markdown(rows, keys, command, figures))

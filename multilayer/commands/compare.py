@@ -20,11 +20,14 @@ from multilayer.commands.common import (
     INVALID,
     OK,
     executor_options,
+    force_option,
     invalid,
     plugin_options,
 )
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
+from multilayer.results.campaign import open_campaign
+from multilayer.results.files import ResultsError
 
 
 @attrs.frozen
@@ -39,11 +42,12 @@ class CompareOptions:
     scheduler: str | None
     plugins: tuple[str, ...]  #: ``--plugin`` modules, loaded again by every worker
     registry: Registry
+    force: bool = False  #: write into a folder refused by default (see results.campaign)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace, registry: Registry, command_line: str) -> CompareOptions:
         return cls(tuple(args.cases), args.out, args.vary, tuple(args.overrides), args.jobs, args.scheduler,
-                   tuple(args.plugins), registry)
+                   tuple(args.plugins), registry, force=args.force)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -56,6 +60,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a value of every variant")
     executor_options(p)
+    force_option(p)
     plugin_options(p)
     p.set_defaults(handler=compare, options=CompareOptions.from_args)
 
@@ -74,7 +79,11 @@ def compare(options: CompareOptions) -> int:
         print(invalid_message("compare", variants, problems), file=sys.stderr)
         return INVALID
     out = options.out
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        open_campaign(out, ("report.json", "report.md", "probes.png", "eta_spacetime.png"), options.force)
+    except ResultsError as exc:
+        print(f"compare: {exc}", file=sys.stderr)
+        return INVALID
     variants = [v for v, _ in loaded]  # with the snapshot cadence they ran with
     try:
         runs = run_variants(variants, out, options.registry, options.jobs, options.plugins, options.scheduler)

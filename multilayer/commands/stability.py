@@ -37,11 +37,14 @@ from multilayer.commands.common import (
     OK,
     case_options,
     executor_options,
+    force_option,
     invalid,
     plugin_options,
 )
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
+from multilayer.results.campaign import open_campaign
+from multilayer.results.files import ResultsError
 
 
 @attrs.frozen
@@ -60,11 +63,12 @@ class StabilityOptions:
     plugins: tuple[str, ...]  #: ``--plugin`` modules, loaded again by every worker
     registry: Registry
     command_line: str  #: written at the top of ``stability.md``
+    force: bool = False  #: write into a folder refused by default (see results.campaign)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace, registry: Registry, command_line: str) -> StabilityOptions:
         return cls(args.case, args.out, args.couplers, args.ratios, tuple(args.varies), args.layer,
-                   tuple(args.overrides), args.jobs, args.scheduler, tuple(args.plugins), registry, command_line)
+                   tuple(args.overrides), args.jobs, args.scheduler, tuple(args.plugins), registry, command_line, force=args.force)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -84,6 +88,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--vary", dest="varies", action="append", default=[], metavar="KEY=A,B[,C...]",
                    help="values of a key, e.g. time.dt=1e-4,1e-5 (repeatable: one map per combination)")
     executor_options(p)
+    force_option(p)
     p.set_defaults(handler=stability, options=StabilityOptions.from_args)
 
 
@@ -109,7 +114,11 @@ def stability(options: StabilityOptions) -> int:
     if wrong:
         print(invalid_message("stability", variants, wrong, "runs"), file=sys.stderr)
         return INVALID
-    o.out.mkdir(parents=True, exist_ok=True)
+    try:
+        open_campaign(o.out, ("stability.json", "stability.md", "stability.png"), o.force)
+    except ResultsError as exc:
+        print(f"stability: {exc}", file=sys.stderr)
+        return INVALID
     folders = {p.label: o.out / p.folder for p in planned}
     try:
         runs = run_planned(variants, folders, o.jobs, o.registry, o.plugins, o.scheduler)

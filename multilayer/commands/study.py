@@ -30,11 +30,14 @@ from multilayer.commands.common import (
     OK,
     case_options,
     executor_options,
+    force_option,
     invalid,
     plugin_options,
 )
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
+from multilayer.results.campaign import open_campaign
+from multilayer.results.files import ResultsError
 
 
 @attrs.frozen
@@ -55,12 +58,13 @@ class StudyOptions:
     plugins: tuple[str, ...]  #: ``--plugin`` modules, loaded again by every worker
     registry: Registry
     command_line: str  #: written at the top of ``study.md``
+    force: bool = False  #: write into a folder refused by default (see results.campaign)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace, registry: Registry, command_line: str) -> StudyOptions:
         return cls(args.case, args.out, args.couplers, tuple(args.varies), args.reference,
                    tuple(args.reference_sets), tuple(args.probes.split(",")) if args.probes else None, args.reuse,
-                   tuple(args.overrides), args.jobs, args.scheduler, tuple(args.plugins), registry, command_line)
+                   tuple(args.overrides), args.jobs, args.scheduler, tuple(args.plugins), registry, command_line, force=args.force)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -82,6 +86,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--reuse", action="store_true",
                    help="keep the runs already in OUT that ended ok with the same case; run only the others")
     executor_options(p)
+    force_option(p)
     p.set_defaults(handler=study, options=StudyOptions.from_args)
 
 
@@ -108,7 +113,11 @@ def study(options: StudyOptions) -> int:
     if wrong:
         print(invalid_message("study", variants, wrong, "runs"), file=sys.stderr)
         return INVALID
-    o.out.mkdir(parents=True, exist_ok=True)
+    try:
+        open_campaign(o.out, ("study.json", "study.md", "pareto.png", "orders.png"), o.force)
+    except ResultsError as exc:
+        print(f"study: {exc}", file=sys.stderr)
+        return INVALID
     folders = {p.label: o.out / p.folder for p in planned} | ({REFERENCE: o.out / REFERENCE} if reference else {})
     # the reference first: with --jobs 1 it is ready before its first comparison, with more it starts first
     order = variants[-1:] + variants[:-1] if reference is not None else variants

@@ -16,6 +16,7 @@ import attrs
 from multilayer.campaign.executor import ExecutorError, Job, execute, how, print_err
 from multilayer.campaign.sweep import (
     collect,
+    figure_name,
     key_problems,
     pending,
     plan,
@@ -30,11 +31,14 @@ from multilayer.commands.common import (
     OK,
     case_options,
     executor_options,
+    force_option,
     invalid,
     plugin_options,
 )
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
+from multilayer.results.campaign import open_campaign
+from multilayer.results.files import ResultsError
 
 
 @attrs.frozen
@@ -50,12 +54,13 @@ class SweepOptions:
     plugins: tuple[str, ...]  #: ``--plugin`` modules, loaded again by every worker
     registry: Registry
     command_line: str  #: written into ``plan.json`` and at the top of ``sweep.md``
+    force: bool = False  #: write into a folder refused by default (see results.campaign)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace, registry: Registry, command_line: str) -> SweepOptions:
         return cls(args.case, args.out, tuple(args.varies), tuple(args.overrides),
                    default_jobs() if args.jobs is None else args.jobs, args.scheduler, tuple(args.plugins), registry,
-                   command_line)
+                   command_line, force=args.force)
 
 
 def default_jobs() -> int:
@@ -74,6 +79,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="values of a key, read like --set values (repeatable; replaces the key in [sweep] grid)")
     executor_options(p, jobs=None, jobs_help="local Dask workers (default: one per core); 1 runs here, "
                                              "one run after the other")
+    force_option(p)
     p.set_defaults(handler=sweep, options=SweepOptions.from_args)
 
 
@@ -100,7 +106,11 @@ def sweep(options: SweepOptions) -> int:
         print(f"sweep: {len(wrong)} of {len(wrong) + len(runs)} runs invalid", *lines, sep="\n", file=sys.stderr)
         return INVALID
     keys = list(dict.fromkeys(k for r in runs for k, _ in r.values))
-    o.out.mkdir(parents=True, exist_ok=True)
+    try:
+        open_campaign(o.out, ("plan.json", "sweep.csv", "sweep.md", *(figure_name(k) for k in keys)), o.force)
+    except ResultsError as exc:
+        print(f"sweep: {exc}", file=sys.stderr)
+        return INVALID
     write_plan(runs, keys, o.out, o.case, o.overrides, o.command_line)
     todo = pending(runs, o.out)
     where = (f"the Dask scheduler {o.scheduler}" if o.scheduler else

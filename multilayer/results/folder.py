@@ -117,7 +117,7 @@ def _is_ours_in_passing(name: str) -> bool:  # what another run's start leaves i
     return name == LOCK or ((m := _TEMP.fullmatch(name)) is not None and m[1] in (MANIFEST, *FIXED))
 
 
-def _dangerous(path: Path) -> str:
+def dangerous(path: Path) -> str:
     """Why ``path`` must not be a new run's results folder (without ``--force``), or ''."""
     resolved = path.resolve()
     if resolved == Path.cwd().resolve():
@@ -170,7 +170,7 @@ class ResultsFolder:
         if isinstance(out, str) and not out.strip():
             raise ResultsError("--out is empty: name the results folder")
         self.path = Path(out)
-        if fresh and not force and (why := _dangerous(self.path)):
+        if fresh and not force and (why := dangerous(self.path)):
             raise ResultsError(f"--out {out} {why}: choose a folder of its own (or --force)")
         if self.path.exists() and not self.path.is_dir():
             raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
