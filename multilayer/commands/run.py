@@ -111,6 +111,9 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
     except (ResultsError, CheckpointError) as exc:
         print(f"{'run' if case is not None else 'resume'}: {exc}", file=sys.stderr)
         return INVALID
+    except loop.Interrupted as exc:  # before the folder was touched (a resume's setup)
+        print(f"resume: interrupted by {exc} while setting up; {out} is as it was", file=sys.stderr)
+        return INTERRUPTED
     except Exception:  # a bug, not a user mistake: the traceback helps
         traceback.print_exc()
         print(f"run failed; partial results in {out}", file=sys.stderr)

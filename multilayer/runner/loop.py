@@ -226,7 +226,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
                 _snapshot(setup, state, results)
             setup.timings["output"] += time.perf_counter() - t_out
         for step in iterate_steps(setup, coupler, state, tally, probes, writers):
-            if signals() is None and progress is not None:
+            if progress is not None:
                 progress(tally, step.row)
             if checkpoint_every and (step.n % checkpoint_every == 0 or signals()):
                 with signals.writing():
