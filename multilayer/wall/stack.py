@@ -174,8 +174,11 @@ class Stack:
     free: np.ndarray
 
     @classmethod
-    def assemble(cls, space: WallSpace) -> Stack:
+    def assemble(cls, space: WallSpace, radial_lines: Sequence[int] = ()) -> Stack:
         """Every layer's matrices on its space, checked (:func:`layer_output`), summed in wall numbering.
+
+        d_z is held at zero on the line of every thin layer and on ``radial_lines``
+        (a fluid glued radially to a thick band: :meth:`Coupler.radial_lines`).
 
         Raises
         ------
@@ -184,7 +187,7 @@ class Stack:
         """
         n = space.ndofs
         matrices: list[LayerMatrices] = []
-        fixed = [np.zeros(0, dtype=np.int64)]
+        fixed = [np.zeros(0, dtype=np.int64), *(space.tangential_dofs_on(i) for i in radial_lines)]
         for p in space.placements:
             own, ess = layer_output(p, space.space_of(p))
             if p.line is not None:
