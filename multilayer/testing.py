@@ -83,7 +83,7 @@ SCENE: dict[str, Any] = {
     "coupler": {"model": "kinematic-splitting"},
     "loads": {"inlet": {"kind": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
 }
-#: The thin layer a thick one is put behind in the coupled scene (the fluid needs a thin layer at its wall).
+#: The thin layer a thick one is put behind in the coupled scene (the kinematic splitting needs one at the fluid).
 LUMEN_LAYER = {"model": "wave-membrane", "density": 1.1, "thickness": 0.02, "tension": 2.0e4}
 #: The small spaces of the matrix checks: length, radius, cells along z (and radial cells of a band).
 SMALL = {"length": 6.0, "radius": 0.5, "nz": 4, "band_cells": 2}

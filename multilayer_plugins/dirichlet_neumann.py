@@ -33,10 +33,12 @@ import numpy as np
 from multilayer.coupling.acceleration import IQNILS, Aitken
 from multilayer.coupling.contract import Coupler, SchemeFailure, StepReport
 from multilayer.coupling.kit import (
+    ThickLumen,
     coupled_case_problems,
     external_force,
     fluid_columns,
     fluid_groups,
+    lumen_param,
     predicted_domain,
     window_loads,
 )
@@ -51,7 +53,7 @@ SCHEMES = ("backward-euler", "crank-nicolson")
 ACCELERATIONS = {"aitken": Aitken, "iqn-ils": IQNILS}
 
 
-class DirichletNeumann(Coupler):
+class DirichletNeumann(ThickLumen, Coupler):
     """Fluid with Dirichlet data on Γ, then the wall under the fluid's force; once, or iterated."""
 
     loads = ("inlet", "outlet", "external")
@@ -131,8 +133,8 @@ class DirichletNeumannImplicit(DirichletNeumann):
     implicit = True
 
     def __init__(self, scheme: str = "backward-euler", acceleration: str = "iqn-ils", tolerance: float = 1e-8,
-                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8):
-        super().__init__(scheme)
+                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8, lumen: str = "radial"):
+        super().__init__(scheme, lumen)
         if acceleration not in ACCELERATIONS:
             raise ValueError(f"acceleration {acceleration!r} is not one of {', '.join(ACCELERATIONS)}")
         self.acceleration, self.tolerance, self.max_iterations = acceleration, tolerance, max_iterations
@@ -148,7 +150,7 @@ class DirichletNeumannImplicit(DirichletNeumann):
 def multilayer_couplers():
     return [
         CouplerPlugin(name="dirichlet-neumann-explicit", factory=DirichletNeumannExplicit,
-                      params=(scheme_param(SCHEMES),),
+                      params=(scheme_param(SCHEMES), lumen_param()),
                       doc="Classic explicit partitioned coupling: fluid with the wall's velocity, then the wall "
                           "under the fluid's force; unstable for light walls."),
         CouplerPlugin(name="dirichlet-neumann-implicit", factory=DirichletNeumannImplicit,
@@ -162,6 +164,7 @@ def multilayer_couplers():
                               Param("relaxation", "ω₀", default=0.5, gt=0.0, le=1.0,
                                     doc="relaxation of a step's first update (Aitken's start, IQN-ILS's first)"),
                               Param("reuse", type=int, default=8, ge=0,
-                                    doc="IQN-ILS: time steps whose iterations are reused")),
+                                    doc="IQN-ILS: time steps whose iterations are reused"),
+                              lumen_param()),
                       doc="Dirichlet–Neumann sub-iterated to a tolerance with Aitken relaxation or IQN-ILS."),
     ]

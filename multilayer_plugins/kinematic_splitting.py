@@ -43,6 +43,7 @@ from multilayer.coupling.kit import (
     lumen_mass,
     quadratic,
     relative,
+    thin_lumen_problems,
     window_loads,
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
@@ -54,6 +55,9 @@ from multilayer.scene.state import State
 from multilayer.wall.stack import LUMEN
 
 SCHEMES = ("backward-euler", "crank-nicolson")
+#: why the splitting cannot take a fluid directly on a thick band
+THICK_LUMEN = ("its fluid step carries the thin layer's inertia ρ₁h/Δt as the Robin term on Γ, and with no thin "
+              "mass there the splitting loses its added-mass stability")
 
 
 class KinematicSplitting(Coupler):
@@ -71,7 +75,8 @@ class KinematicSplitting(Coupler):
         self.extrapolation = int(extrapolation)
 
     def check_case(self, case) -> list[str]:
-        return super().check_case(case) + coupled_case_problems(self.name, case)
+        return (super().check_case(case) + coupled_case_problems(self.name, case)
+                + thin_lumen_problems(self.name, case, THICK_LUMEN))
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state, LUMEN),

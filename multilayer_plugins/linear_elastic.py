@@ -35,7 +35,9 @@ class LinearElasticBand(ThickLayer):
     """A thick band.  Units: density g/cm³, thickness cm, Lamé constants dyn/cm².
 
     ``ends``: ``"clamped"`` (d = 0 at z = 0, L) or ``"sliding"`` (d_z = 0 there);
-    ``faces``: ``"free"`` or ``"sliding"`` (d_r = 0 on the band's inner and outer faces).
+    ``faces``: ``"free"`` or ``"sliding"`` (d_r = 0 on the band's inner and outer faces);
+    ``outer``: ``"free"`` or ``"clamped"`` (d = 0 on the outer face r = R + H: a band tethered to
+    stiff surroundings, as in the static solution of theory §1).
     """
 
     density: float
@@ -44,6 +46,7 @@ class LinearElasticBand(ThickLayer):
     lam: float
     ends: str = "clamped"
     faces: str = "free"
+    outer: str = "free"
 
     @classmethod
     def from_young_poisson(cls, density: float, thickness: float, young: float, poisson: float,
@@ -68,11 +71,13 @@ class LinearElasticBand(ThickLayer):
         fixed = [space.side_dofs("z=0", comp), space.side_dofs("z=L", comp)]
         if self.faces == "sliding":
             fixed += [space.side_dofs("inner", "r"), space.side_dofs("outer", "r")]
+        if self.outer == "clamped":
+            fixed.append(space.side_dofs("outer"))
         return np.unique(np.concatenate(fixed))
 
 
 def _factory(density, thickness, young=None, poisson=None, lame_mu=None, lame_lambda=None,
-             ends="clamped", faces="free"):
+             ends="clamped", faces="free", outer="free"):
     by_young = young is not None or poisson is not None
     by_lame = lame_mu is not None or lame_lambda is not None
     if by_young == by_lame:
@@ -80,12 +85,13 @@ def _factory(density, thickness, young=None, poisson=None, lame_mu=None, lame_la
     if by_young:
         if young is None or poisson is None:
             raise ValueError("young and poisson go together: give both")
-        return LinearElasticBand.from_young_poisson(density, thickness, young, poisson, ends=ends, faces=faces)
+        return LinearElasticBand.from_young_poisson(density, thickness, young, poisson, ends=ends, faces=faces,
+                                                    outer=outer)
     if lame_mu is None or lame_lambda is None:
         raise ValueError("lame_mu and lame_lambda go together: give both")
     if lame_lambda + lame_mu <= 0:
         raise ValueError("lame_lambda + lame_mu must be > 0 (positive-definite elasticity)")
-    return LinearElasticBand(density, thickness, lame_mu, lame_lambda, ends=ends, faces=faces)
+    return LinearElasticBand(density, thickness, lame_mu, lame_lambda, ends=ends, faces=faces, outer=outer)
 
 
 PARAMS = (
@@ -99,6 +105,8 @@ PARAMS = (
           doc="ends z = 0, L: clamped (d = 0) or sliding (d_z = 0)"),
     Param("faces", "", "", "free", type=str, choices=("free", "sliding"),
           doc="inner/outer faces: free (traction) or sliding (d_r = 0)"),
+    Param("outer", "", "", "free", type=str, choices=("free", "clamped"),
+          doc="outer face r = R + H: free (loaded by the external pressure) or clamped (d = 0)"),
 )
 
 

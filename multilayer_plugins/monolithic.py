@@ -25,10 +25,12 @@ import scipy.sparse as sp
 
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
+    ThickLumen,
     coupled_case_problems,
     external_force,
     fluid_columns,
     fluid_groups,
+    lumen_param,
     predicted_domain,
     window_loads,
 )
@@ -42,7 +44,7 @@ from multilayer.scene.state import State
 from multilayer.wall.stack import LUMEN
 
 
-class Monolithic(Coupler):
+class Monolithic(ThickLumen, Coupler):
     name = "monolithic"
     loads = ("inlet", "outlet", "external")
     schemes = tuple(SCHEMES)
@@ -133,6 +135,6 @@ class Layout:
 
 @hookimpl
 def multilayer_couplers():
-    return [CouplerPlugin(name="monolithic", factory=Monolithic, params=(scheme_param(tuple(SCHEMES)),),
+    return [CouplerPlugin(name="monolithic", factory=Monolithic, params=(scheme_param(tuple(SCHEMES)), lumen_param()),
                           doc="Fluid and wall in one linear system per step (geometry explicit); the accuracy "
                               "reference.")]

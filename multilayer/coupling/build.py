@@ -11,13 +11,13 @@ from multilayer.scene.setup import Setup, build_model
 
 
 def prepare(case: Case, registry: Registry) -> tuple[Setup, Coupler]:
-    """(setup, coupler) of ``case``: the coupler decides how the fluid sees the wall (its wall mode).
+    """(setup, coupler) of ``case``: the coupler decides how the fluid sees the wall (its wall mode, its radial lines).
 
     The coupler's construction counts as assembly time, as the setup's does.
     """
     t0 = time.perf_counter()
     coupler = build_model(registry, "coupler", case.coupler)
     built = time.perf_counter() - t0
-    setup = Setup.build(case, registry, coupler.fluid_wall(case))
+    setup = Setup.build(case, registry, coupler.fluid_wall(case), coupler.radial_lines(case))
     setup.timings["assembly"] += built
     return setup, coupler

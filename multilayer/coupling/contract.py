@@ -77,6 +77,15 @@ class Coupler(ABC):
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""
         return "coupled"
 
+    def radial_lines(self, case: Case) -> tuple[int, ...]:
+        """Interface lines whose axial displacement d_z this coupler holds at zero.
+
+        Beyond those under a thin layer, which always are (a thin layer moves
+        radially only): a coupler that glues a fluid radially to a thick band
+        names the lumen line here (theory §1).
+        """
+        return ()
+
     def initial_state(self, setup: Setup) -> State:
         """The state at t = 0 (the case's initial wall, the fluid at rest)."""
         return setup.initial_state()

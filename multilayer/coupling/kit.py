@@ -12,25 +12,61 @@ import scipy.sparse as sp
 
 from multilayer.fluid.contract import Domain
 from multilayer.numerics.timescheme import TimeScheme
+from multilayer.plugin.records import Param
 from multilayer.scene.setup import Setup
 from multilayer.wall.stack import LUMEN
 
+#: how a fluid couples to a first layer that is thick (``[coupler] lumen``): the values a coupler offers
+LUMEN_CONDITIONS = ("radial",)
+
+
+def lumen_param():
+    """The ``lumen`` parameter of a coupler that takes a fluid directly on a thick band."""
+    return Param("lumen", type=str, default="radial", choices=LUMEN_CONDITIONS,
+                 doc="a thick first layer at the fluid: 'radial' glues only its radial motion, u = (0, ∂_t d_r) "
+                     "and d_z = 0 on the lumen (the seed's radial ALE map); ignored under a thin first layer")
+
 
 def coupled_case_problems(name: str, case) -> list[str]:
-    """What a coupler of a fluid and a wall whose first layer is thin cannot run."""
+    """What a coupler of a fluid and a wall cannot run (no fluid, no wall, a prescribed wall)."""
     problems = []
     if case.fluid is None:
         problems.append(f"{name} couples a fluid to the wall: declare [fluid], or choose the coupler 'structure-only'")
     if not case.layers:
         problems.append(f"{name} needs a wall: declare [[layers]], or choose 'fluid-only'")
-    elif not case.layers[0].thin:
-        problems.append(f"{name} needs a thin layer at the fluid interface, but layers[0] is "
-                        f"'{case.layers[0].model}' (thick): put a thin layer (e.g. 'koiter-shell' or "
-                        f"'wave-membrane') first in [[layers]]")
     if case.loads.wall_motion is not None:
         problems.append(f"loads.wall_motion prescribes the wall, which {name} computes: "
                         "remove it, or choose the coupler 'fluid-only' without [[layers]]")
     return problems
+
+
+def thin_lumen_problems(name: str, case, why: str) -> list[str]:
+    """The problem of a coupler that needs a thin layer at the fluid interface, with ``why``, when layers[0] is thick."""
+    if not case.layers or case.layers[0].thin:
+        return []
+    return [(f"{name} needs a thin layer at the fluid interface, but layers[0] is '{case.layers[0].model}' "
+             f"(thick): {why}; put a thin layer (e.g. 'koiter-shell' or 'wave-membrane') first in [[layers]], or "
+             "choose 'monolithic' or 'dirichlet-neumann-implicit', which take a fluid directly on a thick band")]
+
+
+class ThickLumen:
+    """Mixin of a coupler that takes a fluid directly on a thick band (its ``lumen`` parameter).
+
+    With ``lumen = "radial"`` the band's lumen line is glued radially: d_z = 0
+    there (:meth:`radial_lines`), and the fluid's u_r on Γ is the band's
+    radial velocity, as under a thin layer (theory §1).
+    """
+
+    def __init__(self, scheme: str = "backward-euler", lumen: str = "radial"):
+        super().__init__(scheme)
+        if lumen not in LUMEN_CONDITIONS:
+            raise ValueError(f"lumen {lumen!r} is not one of {', '.join(LUMEN_CONDITIONS)}")
+        self.lumen = lumen
+
+    def radial_lines(self, case) -> tuple[int, ...]:
+        """The lumen line when layers[0] is thick (a thin first layer holds its d_z itself)."""
+        thick_first = bool(case.layers) and not case.layers[0].thin
+        return (LUMEN,) if thick_first and self.lumen == "radial" else ()
 
 
 def lumen_layers(setup: Setup) -> list[int]:

@@ -77,11 +77,14 @@ class Setup:
     timings: dict[str, float] = attrs.field(factory=lambda: {"assembly": 0.0, "output": 0.0})
 
     @classmethod
-    def build(cls, case: Case, registry: Registry, wall_mode: str = "coupled") -> Setup:
+    def build(cls, case: Case, registry: Registry, wall_mode: str = "coupled",
+              radial_lines: tuple[int, ...] = ()) -> Setup:
         """Build the models, the wall and the fluid's discretization for ``wall_mode``.
 
         ``wall_mode`` is how the fluid sees the wall: ``coupled``, ``rigid`` or
-        ``prescribed`` (what the case's coupler asks, :meth:`Coupler.fluid_wall`).
+        ``prescribed`` (what the case's coupler asks, :meth:`Coupler.fluid_wall`);
+        ``radial_lines`` the interface lines whose d_z it holds at zero
+        (:meth:`Coupler.radial_lines`).
         """
         t0 = time.perf_counter()
         geometry = build_geometry(registry, case.geometry)
@@ -92,7 +95,7 @@ class Setup:
         if layers:
             wall = WallSpace.build(layers, geometry, g.length, g.radius, m.nz, m.order,
                                    [spec.cells for spec in case.layers], [spec.model for spec in case.layers])
-            stack = Stack.assemble(wall)
+            stack = Stack.assemble(wall, radial_lines)
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
             fluid.setup(FluidSetup(geometry, g.length, g.radius, m.nz, m.nr, m.order, m.grading, wall_mode,

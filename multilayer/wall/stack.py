@@ -174,8 +174,12 @@ class Stack:
     free: np.ndarray
 
     @classmethod
-    def assemble(cls, space: WallSpace) -> Stack:
+    def assemble(cls, space: WallSpace, radial_lines: Sequence[int] = ()) -> Stack:
         """Every layer's matrices on its space, checked (:func:`layer_output`), summed in wall numbering.
+
+        d_z is held at zero on the line of every thin layer and on ``radial_lines``
+        (a fluid glued radially to a thick band: :meth:`Coupler.radial_lines`), whose
+        ends are pinned as a thin layer's are (the fluid holds u_r = 0 at Γ's corners).
 
         Raises
         ------
@@ -185,6 +189,8 @@ class Stack:
         n = space.ndofs
         matrices: list[LayerMatrices] = []
         fixed = [np.zeros(0, dtype=np.int64)]
+        for i in radial_lines:
+            fixed += [space.tangential_dofs_on(i), space.line_dofs(i)[space.lines[i].end_dofs]]
         for p in space.placements:
             own, ess = layer_output(p, space.space_of(p))
             if p.line is not None:
