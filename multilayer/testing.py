@@ -239,8 +239,8 @@ def _geometries(registry: Any) -> list[Geometry]:
     for name in sorted(set(registry.names("geometry")) - {"planar"}):
         try:
             geometry = registry.get("geometry", name).record.factory()
-        except Exception:  # a geometry that needs parameters, or a broken one: not the layer's business
-            continue
+        except TypeError:  # it needs parameters: the kit has none to give
+            geometry = None
         if isinstance(geometry, Geometry):
             out.append(geometry)
     return out
