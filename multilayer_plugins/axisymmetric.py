@@ -12,6 +12,7 @@ the bands read them from ``radial_power`` = 1 of their space's geometry.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -32,6 +33,7 @@ class Axisymmetric(Geometry):
 
     name = "axisymmetric"
     radial_power = 1
+    integral_units: ClassVar[dict[str, str]] = {"energy": "erg", "flow_rate": "cm³/s"}
 
     def weight(self, r):
         return 2.0 * math.pi * np.asarray(r, dtype=float)

@@ -1,4 +1,4 @@
-"""Snapshots of a tube carry its measure (docs/case-files.md, "Snapshots of a tube").
+"""Snapshots of a tube carry its measure (docs/case-files.md, "Snapshots of a tube"); its summary its units.
 
 A fluid snapshot of an axisymmetric run is the deformed meridian with the
 point field ``measure`` = 2πr.  Integrated over the meridian's triangles
@@ -6,6 +6,8 @@ point field ``measure`` = 2πr.  Integrated over the meridian's triangles
 which the frusta under the wall's polyline give independently (Pappus:
 ∫ 2πr dA = 2π r̄ A per triangle).  Planar snapshots stay as they were, without it.
 """
+
+import json
 
 import meshio
 import numpy as np
@@ -33,6 +35,7 @@ def test_a_tube_snapshot_carries_its_measure_and_integrates_to_the_lumen_volume(
     code, _, _ = run_cli("pulse-koiter-thick-axisymmetric", out, "mesh.nz=12", "mesh.nr=3", "time.end=0.003",
                          "time.dt=1e-4", "output.every=30", 'coupler={model="monolithic",scheme="crank-nicolson"}')
     assert code == 0
+    assert json.loads((out / "summary.json").read_text())["units"] == {"energy": "erg", "flow_rate": "cm³/s"}
     fluid = meshio.read(out / "fluid_000030.vtu")
     r = fluid.points[:, 1]
     assert np.allclose(fluid.point_data["measure"], 2 * np.pi * r, rtol=1e-14)
@@ -47,9 +50,11 @@ def test_a_tube_snapshot_carries_its_measure_and_integrates_to_the_lumen_volume(
     assert np.allclose(wall.point_data["measure"], 2 * np.pi * wall.points[:, 1], rtol=1e-14)
 
 
-def test_a_planar_snapshot_has_no_measure_field(tmp_path):
+def test_a_planar_snapshot_has_no_measure_field_and_its_units_are_per_unit_depth(tmp_path):
     code, _, _ = run_cli("pulse-koiter-thick", tmp_path / "planar", "mesh.nz=12", "mesh.nr=3", "time.end=0.0002",
                          "output.every=1")
     assert code == 0
+    summary = json.loads((tmp_path / "planar" / "summary.json").read_text())
+    assert summary["units"] == {"energy": "erg/cm", "flow_rate": "cm²/s"}
     for part in ("fluid", "wall"):
         assert "measure" not in meshio.read(tmp_path / "planar" / f"{part}_000001.vtu").point_data

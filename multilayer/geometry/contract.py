@@ -51,6 +51,8 @@ class Geometry(ABC):
     name: ClassVar[str] = ""
     #: k in weight(r) = c rᵏ: 0 for a planar measure, 1 for an axisymmetric one
     radial_power: ClassVar[int] = 0
+    #: the units of the scene's integrals, for labels: an energy, a flow rate (per unit depth by default)
+    integral_units: ClassVar[dict[str, str]] = {"energy": "erg/cm", "flow_rate": "cm²/s"}
 
     @abstractmethod
     def weight(self, r: Any) -> np.ndarray:
