@@ -31,8 +31,10 @@ less, and the first meshes are pre-asymptotic there.)
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from fluid_steps import fluid_step, given, setup_fluid
 from scipy.special import jv
+from skfem import asm
 from test_fluid_womersley import (
     MU,
     OMEGA,
@@ -45,9 +47,12 @@ from test_fluid_womersley import (
 )
 
 from multilayer.fluid.contract import Domain
+from multilayer.numerics.assembly.batched import BatchedForm
 from multilayer.numerics.timescheme import SCHEMES
 from multilayer_plugins.axisymmetric import Axisymmetric
-from multilayer_plugins.channel import Stokes
+from multilayer_plugins.channel import Stokes, forms
+from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.probes import l2_error
 
 TUBE = Axisymmetric()
@@ -135,3 +140,21 @@ def test_womersley_time_convergence_is_first_order_for_backward_euler():
 def test_womersley_time_convergence_of_the_second_order_schemes(scheme, steps):
     errors = [run(2, 4, 32, PERIOD / n, n // 2, False, scheme=scheme) for n in steps]
     assert np.all(orders(errors) > 1.8), orders(errors)  # CN 2.00, 1.97; BDF2 1.84, 1.92
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_batched_assembly_of_a_tube_equals_scikit_fem(order):
+    """Every form the step assembles in a tube, hoop terms included, on a deformed, moving, graded channel."""
+    ch = Channel.build(TUBE, 2.0, 0.5, nz=4, nr=3, order=order, grading=1.5)
+    z = ch.line.z
+    f = ALEFields.at(ch, 0.1 * np.sin(np.pi * z / 2.0) * (1.0 + z), 0.3 * np.sin(np.pi * z), 1e-3, 0.0)
+    kw, hoop = f.forms_kwargs(), f.hoop_kwargs()
+    cases = [(forms.mass_J, (ch.velocity,), kw), (forms.viscous, (ch.velocity,), kw),
+             (forms.hoop_viscous, (ch.velocity,), hoop), (forms.moving_domain, (ch.velocity,), {"dJdt": f.dJdt}),
+             (forms.pressure_divergence, (ch.velocity, ch.pressure), kw),
+             (forms.hoop_divergence, (ch.velocity, ch.pressure), hoop)]
+    for form, bases, w in cases:
+        B = asm(form, *bases, **w)
+        batched = BatchedForm(*bases, chunk=5)
+        A = sp.coo_matrix((batched.data([(1.0, form, w)]), (batched.rows, batched.cols)), shape=B.shape).tocsr()
+        assert abs(A - B).max() <= 1e-13 * abs(B).max(), form
