@@ -218,15 +218,32 @@ def _on_small_spaces(subject: _Subject, check: Callable[[Layer, Any], list[str]]
     layer, _ = subject.built()
     if layer is None:
         return subject.unbuilt()
-    problems = []
-    planar = subject.registry.get("geometry", "planar").record.factory()  # the kit's small scene is planar
-    for order, space in _small_spaces(layer, planar):
-        try:
-            found = check(layer, space)
-        except Exception as exc:  # the plugin's own code
-            found = [raised(exc)]
-        problems += [f"order {order}: {p}" for p in found]
+    problems, seen = [], set()
+    for geometry in _geometries(subject.registry):
+        where = "" if geometry.name == "planar" else f" ({geometry.name})"
+        for order, space in _small_spaces(layer, geometry):
+            try:
+                found = check(layer, space)
+            except Exception as exc:  # the plugin's own code
+                found = [raised(exc)]
+            # what the planar space already showed is said once
+            problems += [f"order {order}{where}: {p}" for p in found if (order, p) not in seen]
+            seen.update((order, p) for p in found)
     return problems
+
+
+def _geometries(registry: Any) -> list[Geometry]:
+    """The geometries the kit's small spaces are built in: planar, then every other one that needs no
+    parameter (a tube: a layer's hoop terms are checked too)."""
+    out = [registry.get("geometry", "planar").record.factory()]
+    for name in sorted(set(registry.names("geometry")) - {"planar"}):
+        try:
+            geometry = registry.get("geometry", name).record.factory()
+        except TypeError:  # it needs parameters: the kit has none to give
+            geometry = None
+        if isinstance(geometry, Geometry):
+            out.append(geometry)
+    return out
 
 
 def _check_matrices(subject: _Subject, workdir: Path) -> list[str]:

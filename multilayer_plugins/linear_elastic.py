@@ -2,6 +2,11 @@
 
 ρ₂ d_tt = ∇·S,  S = μ_s(∇d + ∇dᵀ) + λ_s(∇·d)I, on a radial band of thickness H.
 Forms of A1: mass ρ₂ ∫ V·Ψ and a_S(d, Ψ) = ∫ 2μ_s D(d):D(Ψ) + λ_s (∇·d)(∇·Ψ).
+
+In a tube (a geometry of radial power k = 1, theory §11) the strain has the
+hoop entry ε_θθ = d_r/r, in ε and in tr ε = ∇·d + d_r/r: ``a_S`` gains the form
+``hoop`` (each of the k hoop directions its own d_r/r), read from the
+space's geometry.  Every integral is in the space's measure.
 """
 
 from __future__ import annotations
@@ -28,6 +33,13 @@ def mass(u, v, w):
 def a_S(u, v, w):
     """∫ 2μ_s D(u):D(v) + λ_s (∇·u)(∇·v)"""
     return 2.0 * w.mu * ddot(sym_grad(u), sym_grad(v)) + w.lam * div(u) * div(v)
+
+
+@skfem.BilinearForm
+def hoop(u, v, w):
+    """a_S's hoop part: ∫ 2μ_s k (u_r/r)(v_r/r) + λ_s [(∇·u + k u_r/r)(∇·v + k v_r/r) − (∇·u)(∇·v)]."""
+    eu, ev = w.k * u[1] / w.x[1], w.k * v[1] / w.x[1]
+    return 2.0 * w.mu / w.k * eu * ev + w.lam * (eu * div(v) + div(u) * ev + eu * ev)
 
 
 @attrs.frozen
@@ -64,6 +76,9 @@ class LinearElasticBand(ThickLayer):
         b = space.basis
         M = mass.assemble(b, density=self.density)
         K = a_S.assemble(b, mu=self.mu, lam=self.lam)
+        k = space.geometry.radial_power
+        if k:
+            K = K + hoop.assemble(b, mu=self.mu, lam=self.lam, k=float(k))
         return LayerMatrices(M.tocsr(), sp.csr_matrix(M.shape), K.tocsr())
 
     def essential_dofs(self, space: BandSpace) -> np.ndarray:
@@ -113,5 +128,5 @@ PARAMS = (
 @hookimpl
 def multilayer_layers():
     return [LayerPlugin(name="linear-elastic", factory=_factory, params=PARAMS, thin=False,
-                        doc="Thick band of 2D linear elasticity (young/poisson or Lamé constants).",
+                        doc="Thick band of linear elasticity, plane strain or axisymmetric (young/poisson or Lamé constants).",
                         example={"density": 1.1, "thickness": 0.1, "young": 7.5e5, "poisson": 0.45})]

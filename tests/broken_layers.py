@@ -95,6 +95,16 @@ class Raises(Spring):
         raise KeyError("stiffness_table")
 
 
+class NanInATube(Spring):
+    """Right in the planar channel, non-finite where the measure varies with r (a hoop term gone wrong)."""
+
+    def forms(self, space):
+        good = super().forms(space)
+        if not space.geometry.radial_power:
+            return good
+        return LayerMatrices(good.mass, good.damping, good.stiffness * np.nan)
+
+
 class Band(ThickLayer):
     """A thick layer, registered as thin by mistake."""
 
@@ -135,6 +145,7 @@ MISTAKES = [
 ]
 #: mistakes that validation lets through: (name, factory, the kit's check that fails, what it says)
 KIT_ONLY = [
+    ("broken-in-a-tube", NanInATube, "matrices", "order 1 (axisymmetric): stiffness has non-finite entries"),
     ("broken-indefinite", Indefinite, "matrices", "stiffness is not positive semi-definite: smallest eigenvalue"),
     ("broken-on-fine-mesh", NanOnFineMesh, "coupled-run", "the run failed: setting up the scene failed: "
      "layers[0] (broken-on-fine-mesh): stiffness has non-finite entries (nan or inf)"),

@@ -20,11 +20,11 @@ class Given(BoundaryCondition):
         return EndTraction(self.pressure)
 
 
-def setup_fluid(fluid, length, radius, nz, nr, ends=None, **options):
-    """``fluid.setup`` on the planar channel L × R, each end a :class:`Given` pressure (0 until set) unless
-    ``ends`` gives its condition."""
+def setup_fluid(fluid, length, radius, nz, nr, ends=None, geometry=None, **options):
+    """``fluid.setup`` on the channel L × R (planar unless ``geometry`` is given), each end a :class:`Given`
+    pressure (0 until set) unless ``ends`` gives its condition."""
     ends = {"inlet": Given(), "outlet": Given(), **(ends or {})}
-    return fluid.setup(FluidSetup(Planar(), length, radius, nz, nr, ends=ends, **options))
+    return fluid.setup(FluidSetup(geometry or Planar(), length, radius, nz, nr, ends=ends, **options))
 
 
 def given(fluid, p_in=0.0, p_out=0.0):

@@ -231,7 +231,7 @@ def test_wave_membrane_against_koiter_shell_by_whole_layer_tables(tmp_path):
     assert shell["long_wave_speed"] == pytest.approx(math.sqrt(R * c0 / 1.0), rel=1e-12)
     assert wave["long_wave_speed"] is None  # a membrane has C0 = 0
     table = md_table(out / "report.md")
-    assert md_row(table, "long-wave speed √(R·C0/ρ_f)") == ["—", f"{shell['long_wave_speed']:.6g}"]
+    assert md_row(table, "long-wave speed √(a·C0/ρ_f), a = R/(1+k)") == ["—", f"{shell['long_wave_speed']:.6g}"]
 
 
 def test_a_failed_variant_is_reported_with_its_reason(tmp_path, capsys):

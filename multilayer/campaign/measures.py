@@ -72,16 +72,36 @@ def wave_speed(z: Sequence[float], times: Sequence[float | None]) -> float | Non
     return float(np.sum(dt * (zs - zs.mean())) / np.sum(dt * dt))
 
 
-def long_wave_speeds(case: Mapping[str, Any], registry: Registry) -> dict[str, float | None]:
-    """√(R·C0/ρ_f), and √(R·C0/(ρ_f + ρ₁h/R)) with the wall's inertia (theory §9).
+def lumen_depth(geometry: Mapping[str, Any], registry: Registry) -> float | None:
+    """a = A/w(R): the lumen's section A = ∫₀^R w(r) dr per unit of its wall's measure w(R), for the measure
+    w = c rᵏ of the case's ``[geometry]`` (resolved): R/(1 + k) — R in the planar channel, R/2 in a tube.
 
-    C0 is the ``long_wave_stiffness(radius=R)`` of the first thin layer,
-    built by its plugin's factory from the resolved case.  None without a
-    fluid, a thin layer, or with C0 = 0 (a wave membrane).
+    None when the geometry's plugin cannot be built from the case.
+    """
+    radius = geometry.get("radius")
+    found = registry.find("geometry", geometry.get("kind", "planar"))
+    if radius is None or found is None:
+        return None
+    try:
+        shape = found.record.factory(**{k: v for k, v in geometry.items() if k not in ("kind", "length", "radius")})
+    except (TypeError, ValueError):
+        return None
+    return radius / (1 + shape.radial_power)
+
+
+def long_wave_speeds(case: Mapping[str, Any], registry: Registry) -> dict[str, float | None]:
+    """√(a·C0/ρ_f), and √(a·C0/(ρ_f + ρ₁h/a)) with the wall's inertia (theory §9, §11).
+
+    a is :func:`lumen_depth` (R in the planar channel, where these are
+    √(R·C0/ρ_f) and √(R·C0/(ρ_f + ρ₁h/R)); R/2 in a tube, Moens–Korteweg's
+    √(R·C0/(2ρ_f))).  C0 is the ``long_wave_stiffness(radius=R)`` of the
+    first thin layer, built by its plugin's factory from the resolved case.
+    None without a fluid, a thin layer, or with C0 = 0 (a wave membrane).
     """
     none = {"long_wave_speed": None, "long_wave_speed_inertia": None}
-    fluid, radius = case.get("fluid"), (case.get("geometry") or {}).get("radius")
-    if not fluid or radius is None:
+    fluid, geometry = case.get("fluid"), case.get("geometry") or {}
+    radius, depth = geometry.get("radius"), lumen_depth(geometry, registry)
+    if not fluid or radius is None or depth is None:
         return none
     for spec in case.get("layers") or []:
         found = registry.find("layer", spec.get("model", ""))
@@ -95,9 +115,9 @@ def long_wave_speeds(case: Mapping[str, Any], registry: Registry) -> dict[str, f
         if c0 <= 0.0:
             return none
         rho = float(fluid["density"])
-        surface = getattr(layer, "density", 0.0) * getattr(layer, "thickness", 0.0) / radius
-        return {"long_wave_speed": math.sqrt(radius * c0 / rho),
-                "long_wave_speed_inertia": math.sqrt(radius * c0 / (rho + surface)) if surface else None}
+        surface = getattr(layer, "density", 0.0) * getattr(layer, "thickness", 0.0) / depth
+        return {"long_wave_speed": math.sqrt(depth * c0 / rho),
+                "long_wave_speed_inertia": math.sqrt(depth * c0 / (rho + surface)) if surface else None}
     return none
 
 

@@ -67,8 +67,8 @@ def rows(data: Mapping[str, Any]) -> list[tuple[str, list[str]]]:
     out += [
         row("wave speed from peak times (cm/s)", lambda c: c["wave_speed_peak"]),
         row("wave speed from half-peak times (cm/s)", lambda c: c["wave_speed_half_peak"]),
-        row("long-wave speed √(R·C0/ρ_f) (cm/s)", lambda c: c["long_wave_speed"]),
-        row("with wall inertia √(R·C0/(ρ_f + ρ₁h/R)) (cm/s)", lambda c: c["long_wave_speed_inertia"]),
+        row("long-wave speed √(a·C0/ρ_f), a = R/(1+k) (cm/s)", lambda c: c["long_wave_speed"]),
+        row("with wall inertia √(a·C0/(ρ_f + ρ₁h/a)) (cm/s)", lambda c: c["long_wave_speed_inertia"]),
         row("peak pressure (dyn/cm²)", lambda c: c["peak_pressure"]),
         row("final total energy", lambda c: c["final_energy"]),
         row("ledger max relative residual", lambda c: c["max_relative_residual"]),

@@ -51,6 +51,8 @@ class Geometry(ABC):
     name: ClassVar[str] = ""
     #: k in weight(r) = c rᵏ: 0 for a planar measure, 1 for an axisymmetric one
     radial_power: ClassVar[int] = 0
+    #: the units of the scene's integrals, for labels: an energy, a flow rate (per unit depth by default)
+    integral_units: ClassVar[dict[str, str]] = {"energy": "erg/cm", "flow_rate": "cm²/s"}
 
     @abstractmethod
     def weight(self, r: Any) -> np.ndarray:
@@ -66,6 +68,25 @@ class Geometry(ABC):
     def stretch(self, J: Any) -> Any:
         """The volume element's growth J^{1+k} when the ALE map stretches r by J (theory §2)."""
         return J if self.radial_power == 0 else J ** (1 + self.radial_power)
+
+    def stretch_rate(self, J_before: Any, J_after: Any, rate: Any) -> Any:
+        """(J_after^{1+k} − J_before^{1+k}) / Δt for J moving at ``rate`` = (J_after − J_before)/Δt.
+
+        The volume element's growth over a step, exact to round-off (the
+        factored difference rate·Σᵢ J_afterⁱ J_beforeᵏ⁻ⁱ, no cancellation):
+        a fluid's moving-domain term with it leaves no geometric remainder
+        in the energy identity (theory §5, §11).  ``rate`` itself for k = 0.
+
+        >>> class Tube(Geometry):
+        ...     radial_power = 1
+        ...     def weight(self, r):
+        ...         return np.asarray(r, dtype=float)
+        >>> float(Tube().stretch_rate(1.0, 1.5, 0.5)), float((1.5 ** 2 - 1.0) / 1.0)
+        (1.25, 1.25)
+        """
+        if self.radial_power == 0:
+            return rate
+        return rate * sum(J_after**i * J_before ** (self.radial_power - i) for i in range(self.radial_power + 1))
 
     def weighted(self, basis: Any, radius: float | None = None) -> Any:
         """``basis`` with its quadrature weights ``dx`` multiplied by the measure, in place; returned.

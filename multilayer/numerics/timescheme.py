@@ -148,6 +148,15 @@ class TimeScheme:
             return etas[1]
         return self.average(etas) if self.name == "crank-nicolson" else etas[0]
 
+    @property
+    def geometry_position(self) -> float:
+        """Where the domain of :meth:`geometry` sits in the step, as a fraction: tⁿ + position·Δt.
+
+        >>> [s.geometry_position for s in SCHEMES.values()]
+        [0.0, 0.5, 1.0]
+        """
+        return float(self.geometry([np.ones(1), np.zeros(1), np.zeros(1)])[0])
+
     def load_window(self, t0: float, t1: float) -> tuple[float, float]:
         """The time window whose average load is F̄.
 

@@ -75,6 +75,7 @@ def plot_probes(run, path: Path) -> None:
         for p in probes:
             ax.plot(run.t, run.series[p["name"]], label=f"{p['name']} ({_where(p)})")
         what, unit = QUANTITIES.get(quantity, (quantity, ""))
+        unit = _units(run).get(quantity, unit)
         ax.set_ylabel(f"{what.split(',')[0]} ({unit})" if unit else what)
         ax.set_title(what, fontsize="medium")
         ax.grid(alpha=0.3)
@@ -83,8 +84,15 @@ def plot_probes(run, path: Path) -> None:
     save_figure(fig, path)
 
 
+def _units(run) -> dict[str, str]:
+    """The units of the run's integrals as its geometry gave them (``summary.json`` ``units``; per unit depth
+    for a run written before they were recorded)."""
+    return (getattr(run, "summary", None) or {}).get("units") or {}
+
+
 def plot_energy(run, path: Path) -> None:
-    """Stored energy, cumulative work and dissipation (g·cm²/s² per unit depth), and each step's residual."""
+    """Stored energy, cumulative work and dissipation (erg per unit depth, or in the geometry's units), and
+    each step's residual."""
     s, t = run.series, run.t
     work = np.cumsum(sum((s[k] for k in s if k.startswith("work.")), np.zeros_like(t)))
     dissipation = np.cumsum(sum((s[k] for k in s if k.startswith("dissipation.")), np.zeros_like(t)))
@@ -95,7 +103,7 @@ def plot_energy(run, path: Path) -> None:
     top.plot(t, stored, label="stored energy E")
     top.plot(t, initial + work, label="E⁰ + cumulative work")
     top.plot(t, dissipation, label="cumulative dissipation (viscous, numerical, …)")
-    top.set_ylabel("energy (erg/cm)")
+    top.set_ylabel(f"energy ({_units(run).get('energy', 'erg/cm')})")
     top.set_title("energy ledger: E = E⁰ + work − dissipation every step", fontsize="medium")
     top.grid(alpha=0.3)
     top.legend(fontsize="small")

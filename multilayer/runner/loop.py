@@ -261,6 +261,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "case": dict(case.resolved),
         "case_hash": case.digest,
         "plugins": plugin_versions(case, registry),
+        **({"units": dict(setup.geometry.integral_units)} if setup else {}),
         "dofs": setup.dof_counts() if setup else {},
         "steps": tally.steps,
         "t": tally.t,

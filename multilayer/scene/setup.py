@@ -210,13 +210,13 @@ class Setup:
             pts = np.column_stack([mesh.p[0], np.full(mesh.p.shape[1], line.radius), np.zeros(mesh.p.shape[1])])
             disp = np.column_stack([zero, st.d[vert], zero])
             vel = np.column_stack([zero, self.wall_velocity(state, 0)[vert], zero])
-            return pts, {"line": mesh.t.T}, {"displacement": disp, "velocity": vel}
+            return pts, {"line": mesh.t.T}, self._measured(pts, {"displacement": disp, "velocity": vel})
         mesh = wall.basis.mesh
         nd = wall.basis.nodal_dofs
         pts = np.column_stack([mesh.p[0], mesh.p[1], np.zeros(mesh.p.shape[1])])
         disp = np.column_stack([st.d[nd[0]], st.d[nd[1]], np.zeros(mesh.p.shape[1])])
         vel = np.column_stack([st.V[nd[0]], st.V[nd[1]], np.zeros(mesh.p.shape[1])])
-        return pts, {"triangle": mesh.t.T}, {"displacement": disp, "velocity": vel}
+        return pts, {"triangle": mesh.t.T}, self._measured(pts, {"displacement": disp, "velocity": vel})
 
     def fluid_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
         """The channel in its physical (deformed) place: velocity and pressure at the vertices.
@@ -225,8 +225,16 @@ class Setup:
         written (Warp By Vector would move the channel twice).
         """
         pts, tri, data = self.fluid.snapshot(state.fluid, state.eta)
-        return _xyz(pts), {"triangle": tri}, {k: _xyz(v) if np.ndim(v) == 2 else v for k, v in data.items()
-                                              if k != "displacement"}
+        return _xyz(pts), {"triangle": tri}, self._measured(pts, {k: _xyz(v) if np.ndim(v) == 2 else v
+                                                                 for k, v in data.items() if k != "displacement"})
+
+    def _measured(self, points: np.ndarray, data: dict) -> dict:
+        """``data`` with the point field ``measure`` = weight(r) at the points, in a geometry whose measure
+        varies with r (a tube's 2πr): ParaView's *Integrate Variables* of ``measure`` × f over the meridian is
+        ∫ f dV of the geometry (docs/case-files.md, "Results").  A planar snapshot is left as it is."""
+        if self.geometry.radial_power:
+            data["measure"] = np.asarray(self.geometry.weight(points[:, 1]), dtype=float)
+        return data
 
 
 def _xyz(a: np.ndarray) -> np.ndarray:

@@ -21,10 +21,24 @@ from multilayer.geometry.spaces import LineSpace, line_prolongation, make_line_s
 
 VELOCITY_ELEMENTS = {2: skfem.ElementTriP2, 1: skfem.ElementTriMini}
 
-#: Degree of the triangle quadrature (6 points).  It integrates J ∇^η·u
-#: against the P1 pressure exactly for both elements (degree ≤ 4 on Ω̂ when
-#: η is of the element's order), so the discrete mass balance is exact.
+#: Degree of the triangle quadrature in the planar channel (6 points).  It
+#: integrates J ∇^η·u against the P1 pressure exactly for both elements
+#: (degree ≤ 4 on Ω̂ when η is of the element's order), so the discrete
+#: mass balance is exact.
 QUADRATURE_ORDER = 4
+
+
+def quadrature_order(geometry: Geometry) -> int:
+    """The degree that keeps the divergence row exact in ``geometry``: 4 + 3k (13 points in a tube).
+
+    In a tube the weighted divergence J²r̂ ∇^η·u + J u_r (J² = ((R + η)/R)², the
+    weight r̂, the hoop term) against a P1 pressure has degree 7 for P2 (6 for MINI).
+
+    >>> from multilayer_plugins.planar import Planar
+    >>> quadrature_order(Planar())
+    4
+    """
+    return QUADRATURE_ORDER + 3 * geometry.radial_power
 
 
 def line_sampling(line: LineSpace, z: np.ndarray, cell: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -116,7 +130,7 @@ class Channel:
         if order not in VELOCITY_ELEMENTS:
             raise ValueError(f"fluid element order must be 1 (MINI) or 2 (Taylor–Hood), got {order!r}")
         mesh = channel_mesh(length, radius, nz, nr, grading)
-        velocity = skfem.Basis(mesh, skfem.ElementVector(VELOCITY_ELEMENTS[order]()), intorder=QUADRATURE_ORDER)
+        velocity = skfem.Basis(mesh, skfem.ElementVector(VELOCITY_ELEMENTS[order]()), intorder=quadrature_order(geometry))
         pressure = geometry.weighted(skfem.Basis(mesh, skfem.ElementTriP1(), quadrature=velocity.quadrature))
         geometry.weighted(velocity)
         tol = 1e-9 * max(length, radius)

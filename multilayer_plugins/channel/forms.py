@@ -14,6 +14,12 @@ them on all pairs of basis functions at once; ``skfem.asm`` works too.
 Coefficients multiply one factor before the product (``dot(J u, q)``, not
 ``J dot(u, q)``): batched, the factors are per function, the product per pair.
 
+In a tube (a geometry with radial power k = 1, theory §11) the strain rate
+has the hoop entry D_θθ = u_r/r and the divergence the term u_r/r: the step
+adds ``hoop_viscous`` (× 2μk) to ``viscous`` and ``hoop_divergence`` (× k)
+to ``pressure_divergence``, with the field ``hoop`` = 1/r; ``J`` is then the
+volume factor J² of the ALE map.
+
 The functionals at the end are the integrands of the A2 energy identity
 (theory §7); the ledger evaluates them with the quadrature of the assembly.
 """
@@ -111,6 +117,18 @@ def pressure_divergence(u, pi, w):
     return (w.J * (G[0][0] + G[1][1])) * pi
 
 
+@BilinearForm
+def hoop_viscous(u, q, w):
+    """∫ J (u_r/r)(q_r/r)  (× 2μk): the hoop product D_θθ(u) D_θθ(q) of a tube's viscous form."""
+    return (w.J * w.hoop * u[1]) * (w.hoop * q[1])
+
+
+@BilinearForm
+def hoop_divergence(u, pi, w):
+    """∫ J π u_r/r  (× k): the hoop part of a tube's divergence ∂_z u_z + ∂_r u_r + u_r/r."""
+    return (w.J * w.hoop * u[1]) * pi
+
+
 @LinearForm
 def dynamic_pressure(q, w):
     """−∫ J q·n on an inlet or outlet facet set (× P): P_in ∫_Γin q_z, −P_out ∫_Γout q_z.
@@ -132,6 +150,12 @@ def strain_squared(w):
     """∫ J |D^η(u)|²  (× 2μΔt: the viscous dissipation of a step)."""
     D = sym(grad_eta(w.u, w))
     return w.J * ddot(D, D)
+
+
+@Functional
+def hoop_squared(w):
+    """∫ J (u_r/r)²  (× 2μkΔt: the hoop part of a tube's viscous dissipation)."""
+    return w.J * (w.hoop * w.u[1]) ** 2
 
 
 @Functional

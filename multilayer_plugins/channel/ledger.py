@@ -28,8 +28,9 @@ def fluid_kinetic(channel: Channel, density: float, J: np.ndarray, u: np.ndarray
 
 def end_fluxes(channel: Channel, fields: ALEFields, u: np.ndarray) -> tuple[float, float]:
     """(Q_in, Q_out): volume flux in through z = 0 and out through z = L (cm²/s)."""
-    q_in = -float(forms.normal_flux.assemble(channel.inlet, u=channel.inlet.interpolate(u), J=fields.J_in))
-    q_out = float(forms.normal_flux.assemble(channel.outlet, u=channel.outlet.interpolate(u), J=fields.J_out))
+    J_in, J_out = channel.geometry.stretch(fields.J_in), channel.geometry.stretch(fields.J_out)
+    q_in = -float(forms.normal_flux.assemble(channel.inlet, u=channel.inlet.interpolate(u), J=J_in))
+    q_out = float(forms.normal_flux.assemble(channel.outlet, u=channel.outlet.interpolate(u), J=J_out))
     return q_in, q_out
 
 
@@ -60,15 +61,21 @@ class Quadrature:
         return 0.5 * self.density * float(np.sum(self.form.dx * J * (v[0] * v[0] + v[1] * v[1])))
 
     def strain_squared(self, u: np.ndarray, fields: ALEFields) -> float:
-        """∫ J |D^η(u)|² (the integrand :data:`forms.strain_squared`), chunk by chunk of elements.
+        """∫ J |D^η(u)|² (the integrand :data:`forms.strain_squared`, with k times
+        :data:`forms.hoop_squared` in a tube), chunk by chunk of elements.
 
         Per chunk, so the jets and the integrand's intermediate arrays stay
         small: on a large mesh whole-mesh arrays are fresh pages every step.
         """
         kw = fields.forms_kwargs()
+        if fields.hoop is not None:
+            kw["hoop"] = fields.hoop
         total = 0.0
         for cut in self.form.chunks():
             w = FormExtraParams({"u": self.form.field(u, cut),
                                  **{k: np.asarray(a)[..., cut, :] if np.ndim(a) >= 2 else a for k, a in kw.items()}})
-            total += float(np.sum(self.form.dx[cut] * forms.strain_squared.form(w)))
+            integrand = forms.strain_squared.form(w)
+            if fields.hoop is not None:
+                integrand = integrand + fields.hoops * forms.hoop_squared.form(w)
+            total += float(np.sum(self.form.dx[cut] * integrand))
         return total

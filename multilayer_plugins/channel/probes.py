@@ -117,7 +117,7 @@ def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray) ->
 def l2_error(channel: Channel, u: np.ndarray, eta: np.ndarray, exact) -> float:
     """‖u_h − u‖ in L²(Ω(η)) for ``exact(z, r) -> (u_z, u_r)`` given on the physical domain.
 
-    Evaluated with the quadrature of the assembly, J dx̂ being the physical measure.
+    Evaluated with the quadrature of the assembly, J^{1+k} dx̂ being the physical measure.
     """
     basis = channel.velocity
     R = channel.radius
@@ -126,5 +126,5 @@ def l2_error(channel: Channel, u: np.ndarray, eta: np.ndarray, exact) -> float:
     zq, rq = np.asarray(basis.global_coordinates())
     ez, er = exact(zq, J * rq)
     uh = np.asarray(basis.interpolate(u))
-    integrand = J * ((uh[0] - ez) ** 2 + (uh[1] - er) ** 2)
+    integrand = channel.geometry.stretch(J) * ((uh[0] - ez) ** 2 + (uh[1] - er) ** 2)
     return float(np.sqrt(np.sum(integrand * basis.dx)))

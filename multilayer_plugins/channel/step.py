@@ -224,7 +224,17 @@ class FluidStep:
     # every step and is assembled with the state part in one pass.
     def _geometry_terms(self, fields: ALEFields, mass_coefficient: float) -> list:
         kw = fields.forms_kwargs()
-        return [(mass_coefficient, forms.mass_J, kw), (2.0 * self.viscosity, forms.viscous, kw)]
+        terms = [(mass_coefficient, forms.mass_J, kw), (2.0 * self.viscosity, forms.viscous, kw)]
+        if fields.hoop is not None:
+            terms.append((2.0 * self.viscosity * fields.hoops, forms.hoop_viscous, fields.hoop_kwargs()))
+        return terms
+
+    @staticmethod
+    def _divergence_terms(fields: ALEFields) -> list:
+        terms = [(1.0, forms.pressure_divergence, fields.forms_kwargs())]
+        if fields.hoop is not None:
+            terms.append((float(fields.hoops), forms.hoop_divergence, fields.hoop_kwargs()))
+        return terms
 
     def _state_terms(self, fields: ALEFields, a: np.ndarray | None) -> list:
         terms = []
@@ -241,12 +251,12 @@ class FluidStep:
             if self._buffers is None:  # the element data of every step goes here: no fresh pages per step
                 self._buffers = (np.empty(self._uu.shape), np.empty(self._pu.shape))
             geometry = self._geometry_terms(fields, mass_coefficient)
-            div = self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())], out=self._buffers[1])
+            div = self._pu.data(self._divergence_terms(fields), out=self._buffers[1])
             return self._uu.data(geometry + state, out=self._buffers[0]), div
         if mass_coefficient not in self._static:
             self._static[mass_coefficient] = (
                 self._uu.data(self._geometry_terms(fields, mass_coefficient)),
-                self._pu.data([(1.0, forms.pressure_divergence, fields.forms_kwargs())]))
+                self._pu.data(self._divergence_terms(fields)))
         velocity, div = self._static[mass_coefficient]
         return (velocity + self._uu.data(state) if state else velocity), div
 
@@ -295,7 +305,8 @@ class FluidStep:
         t0 = time.perf_counter()
         ch = self.channel
         hist = tuple(levels(history[0], history[1:], scheme.old_levels))
-        fields = self._rigid if self.wall == "rigid" else ALEFields.at(ch, domain.eta, domain.velocity)
+        fields = (self._rigid if self.wall == "rigid"
+                  else ALEFields.at(ch, domain.eta, domain.velocity, dt, scheme.geometry_position))
         mass_coefficient = scheme.inertia * self.density / dt
         tractions = self.ends.tractions(times, dt, scheme, hist, fields)
         key = (mass_coefficient, *self.ends.resistances(tractions))
@@ -431,8 +442,8 @@ class FluidStep:
         us = [solution.state.u, *[s.u for s in system.history]]
         ubar = solution.mean[: ch.nu]
         R = ch.radius
-        J_old = 1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R
-        J_new = 1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R
+        J_old = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R)
+        J_new = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R)
 
         def q(J):
             return lambda x: quad.kinetic(J, x)
