@@ -73,9 +73,9 @@ def test_a1_and_a2_identities_separately(tmp_path, monkeypatch):
     residuals = []
 
     class CheckedStep(StructureStep):
-        def step(self, state, forces):
+        def step(self, state, forces, dt=None):
             before = sum(self.energy(state).values())  # ½ρ₁h‖vⁿ‖² (fluid trace) + band + elastic at n
-            out = super().step(state, forces)
+            out = super().step(state, forces, dt)
             after = sum(out.stored.values())
             res = after - before - sum(out.work.values()) + sum(out.dissipation.values())
             residuals.append(abs(res) / max(abs(after), abs(before), 1e-300))

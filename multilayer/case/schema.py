@@ -96,7 +96,7 @@ STEPS_TOL = 1e-6
 
 
 #: Columns of ``series.csv`` a probe may not be named: the step, the time and the coupler's iteration count ...
-RESERVED_COLUMNS = ("step", "t", "iterations", "dt")
+RESERVED_COLUMNS = ("step", "t", "iterations", "dt", "landed")
 #: ... and every column of the energy ledger and of the ends' and couplers' diagnostics, by its prefix.
 RESERVED_PREFIXES = ("energy.", "kinetic.", "elastic.", "stored.", "work.", "dissipation.", "end.", "interface.",
                      "error.")

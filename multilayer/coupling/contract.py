@@ -83,10 +83,11 @@ class Coupler(ABC):
         name = getattr(self, "name", type(self).__name__)
         offered = (f"it takes them with scheme = {' or '.join(repr(s) for s in self.adaptive)}" if self.adaptive
                    else "choose 'monolithic' or 'kinematic-splitting' with scheme = 'crank-nicolson'")
-        return [f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
-                f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is "
-                f"{'first order' if self.scheme.order == 1 else 'a multistep rule without variable-step coefficients here'}"
-                f"); {offered}, or remove time.tolerance"]
+        why = "first order" if self.scheme.order == 1 else "a multistep rule without variable-step coefficients here"
+        reason = (f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
+                  f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is {why}); "
+                  f"{offered}, or remove time.tolerance")
+        return [reason]
 
     def fluid_wall(self, case: Case) -> str:
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""

@@ -33,6 +33,7 @@ import attrs
 import numpy as np
 
 from multilayer.case.model import Case
+from multilayer.coupling import clock
 from multilayer.coupling.build import prepare
 from multilayer.coupling.contract import Coupler, SchemeFailure
 from multilayer.numerics.threads import blas_threads
@@ -184,6 +185,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
                     state = coupler.initial_state(setup)
             if tally is None:
                 tally = Tally.start(setup, coupler, state)
+            tally.clock = state.extra.get("clock")
             probes = setup.probe_rows(case.output.probes)
             writers = Writers(results, setup, saved, ["step", "t", *coupler.energy(setup, state),
                                                       "energy.total", "energy.residual", "energy.relative_residual",
@@ -224,6 +226,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "steps": tally.steps,
         "t": tally.t,
         "dt": case.time.dt,
+        **clock.summary(tally.clock, case.time.tolerance),
         "scheme": _scheme(coupler),
         "wall_time_s": tally.wall_time_s + time.perf_counter() - wall_t0,
         "timings": _timings(setup),
@@ -277,8 +280,11 @@ class Writers:
             self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
 
     def fields(self, step: Step) -> None:
-        """The snapshots, every ``[output] every`` steps."""
-        if self.every and step.n % self.every == 0:
+        """The snapshots, every ``[output] every`` steps; with adaptive steps at every step that landed on an
+        output time (``time.output_interval``, ``time.end``)."""
+        if not self.every:
+            return
+        if step.diagnostics.get("landed", 0.0) if self.setup.case.time.adaptive else step.n % self.every == 0:
             _snapshot(self.setup, step.state, self.results)
 
 
