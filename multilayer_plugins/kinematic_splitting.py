@@ -99,12 +99,12 @@ class KinematicSplitting(Coupler):
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         fluid, wall = setup.fluid, setup.wall
+        adaptive = setup.case.time.adaptive  # a new Δt's wall matrix: GMRES on held factors, or factorized
         a1 = StructureStep(setup.stack, self.scheme, setup.dt, setup.stats("wall"), setup.case.solver,
-                           fluid_line=LUMEN)
+                           fluid_line=LUMEN, reuse=setup.case.reuse if adaptive else None)
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
         robins: dict[float, object] = {}  # per Δt the same object every step: its slots are looked up once
-        adaptive = setup.case.time.adaptive
 
         def advance(state: State, w: Window) -> tuple[State, StepReport]:
             S, dt = w.scheme, w.dt

@@ -61,12 +61,14 @@ def test_a_step_below_dt_min_stops_the_run_and_keeps_its_rows(tmp_path):
     assert len(rows) == summary["steps"] >= 2
 
 
-def test_an_adaptive_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path):
+@pytest.mark.parametrize("coupler", [MONOLITHIC, SPLITTING], ids=["monolithic-cn", "splitting-cn-beta1"])
+def test_an_adaptive_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, coupler):
     """The controller's record (proposal, last error, peaks, counts) is the state's ``extra['clock']``, so a
-    checkpoint carries it; the error is per unit of elapsed time (not of time.end), so a run to 2 ms
+    checkpoint carries it, and the wall's reusing solver's held factors (the splitting's) too; the error is per
+    unit of elapsed time (not of time.end), so a run to 2 ms
     resumed to 4 ms takes the steps of a run to 4 ms."""
     assert_resume_is_bit_identical(tmp_path, "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3", "time.dt=1e-6",
-                                   MONOLITHIC, "time.tolerance=1e-3", "time.output_interval=1e-3",
+                                   coupler, "time.tolerance=1e-3", "time.output_interval=1e-3",
                                    every=10, half=0.002, end=0.004)
 
 
