@@ -16,6 +16,9 @@ from multilayer.numerics.stepsize import Controller, local_error, predictor
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
 SPLITTING = 'coupler={model="kinematic-splitting",scheme="crank-nicolson",beta=1}'
+#: the tolerance each coupler is tested at: the splitting's estimate carries its error constant (10), and
+#: below about 1e-2 its steps collapse at the start on the composite wall (docs/accuracy.md, "Adaptive steps")
+TOLERANCE = {MONOLITHIC: "1e-3", SPLITTING: "1e-2"}
 
 
 def test_the_predictor_is_exact_for_quadratics_and_the_estimate_for_cubics_on_uneven_steps():
@@ -33,7 +36,7 @@ def test_the_controller_grows_after_a_small_error_and_shrinks_after_a_large_one(
     assert c.accepted(1e-3, 1e-3) == 2.0 and c.accepted(1.0, 1.0) < 1.0 and c.rejected(100.0) == 0.1
 
 
-@pytest.mark.parametrize("coupler, tolerance", [(MONOLITHIC, "1e-3"), (SPLITTING, "1e-2")])
+@pytest.mark.parametrize("coupler, tolerance", TOLERANCE.items())
 def test_adaptive_steps_close_the_ledger_and_report_their_steps(tmp_path, coupler, tolerance):
     """Changing Δt: CN's identity holds step by step with that step's Δt, so the ledger closes to round-off
     (measured ≤ 2e-12); every rejected try is dropped whole (the ledger would not close otherwise)."""
@@ -68,7 +71,7 @@ def test_an_adaptive_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, 
     unit of elapsed time (not of time.end), so a run to 2 ms
     resumed to 4 ms takes the steps of a run to 4 ms."""
     assert_resume_is_bit_identical(tmp_path, "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3", "time.dt=1e-6",
-                                   coupler, "time.tolerance=1e-3", "time.output_interval=1e-3",
+                                   coupler, f"time.tolerance={TOLERANCE[coupler]}", "time.output_interval=1e-3",
                                    every=10, half=0.002, end=0.004)
 
 
@@ -129,7 +132,8 @@ def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler):
         "pulse-koiter", tmp_path / "light",
         'layers[0]={ model = "koiter-shell", density = 1.0, thickness = 0.0005, young = 7.5e7, poisson = 0.49 }',
         "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.2", "time.dt=1e-6", "time.dt_max=1e-4",
-        "time.tolerance=1e-3", "output.probes=[{ name = \"eta_z1\", quantity = \"eta\", z = 1.0 }]", coupler)
+        f"time.tolerance={TOLERANCE[coupler]}", "output.probes=[{ name = \"eta_z1\", quantity = \"eta\", z = 1.0 }]",
+        coupler)
     assert code == 0 and summary["status"] == "ok", summary["reason"]
     assert summary["adaptive"]["accepted"] == len(rows) >= 2000
     energy = np.array([float(r["energy.total"]) for r in rows])

@@ -59,14 +59,19 @@ class Window:
 Advance = Callable[[State, Window], tuple[State, StepReport]]
 
 
-def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance) -> Iterator[tuple[State, StepReport]]:
-    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance."""
+def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance,
+          error_constant: float = 1.0) -> Iterator[tuple[State, StepReport]]:
+    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance.
+
+    ``error_constant``: the coupler's local error over Crank–Nicolson's at the same Δt (1 for a scheme
+    that is Crank–Nicolson, like ``monolithic``): the estimate is multiplied by it.
+    """
     if not setup.case.time.adaptive:
         for n, t0, t1 in setup.windows(state.n):
             state, report = advance(state, Window(n, t0, t1, setup.dt, scheme))
             yield state, report
         return
-    yield from Adaptive(setup, scheme).march(state, advance)
+    yield from Adaptive(setup, scheme, error_constant).march(state, advance)
 
 
 def fields(state: State) -> dict[str, np.ndarray]:
@@ -103,8 +108,9 @@ def integrate(state: State, new: State) -> State:
 class Adaptive:
     """Steps chosen by error (module docstring)."""
 
-    def __init__(self, setup: Setup, scheme: TimeScheme):
+    def __init__(self, setup: Setup, scheme: TimeScheme, error_constant: float = 1.0):
         time = setup.case.time
+        self.error_constant = error_constant
         self.setup, self.scheme = setup, scheme
         self.tol, self.end, self.first = time.tolerance, time.end, time.dt
         self.lo, self.hi = time.smallest, time.dt_max if time.dt_max is not None else math.inf
@@ -157,7 +163,7 @@ class Adaptive:
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
             if scale > 0.0:
                 worst = max(worst, e / scale)
-        return worst * new.t / (dt * self.tol)
+        return self.error_constant * worst * new.t / (dt * self.tol)
 
     @staticmethod
     def size(x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
@@ -193,7 +199,12 @@ class Adaptive:
             clipped = window.dt < min(record["dt"], self.hi)
             factor = 1.0 if err is None else self.controller.accepted(err, record["err"])
             proposal = max(window.dt * factor, record["dt"]) if clipped else window.dt * factor
-            record.update(dt=min(max(proposal, self.lo), self.hi), err=record["err"] if err is None else err,
+            if proposal < self.lo:  # the error asks for steps below dt_min from here on: no end of them
+                raise SchemeFailure(
+                    f"adaptive steps: after t = {new.t:.6g} s the error (err = {err:.3g} × time.tolerance) asks "
+                    f"for a step of {proposal:.3g} s < time.dt_min = {self.lo:.3g} s: loosen time.tolerance or "
+                    f"lower time.dt_min (every step up to t = {state.t:.6g} s is kept)")
+            record.update(dt=min(proposal, self.hi), err=record["err"] if err is None else err,
                           last=window.dt, accepted=record["accepted"] + 1,
                           smallest=min(record["smallest"] or window.dt, window.dt),
                           largest=max(record["largest"], window.dt))

@@ -26,7 +26,7 @@ from collections.abc import Mapping, Sequence
 import attrs
 import numpy as np
 
-from multilayer.numerics.linsolve import Reuse, ReusingSolver, SolverStats, factorize
+from multilayer.numerics.linsolve import SolverStats, factorize
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.scene.state import State, WallState
 from multilayer.wall.stack import Stack
@@ -66,23 +66,17 @@ class StructureStep:
     fluid_line : int or None
         The line whose thin layers take their old velocity from ``State.v``
         (0 in a partitioned coupled run), or None when no fluid updates it.
-    reuse : Reuse or None
-        For steps of changing Δt (adaptive): the matrix of a new Δt goes to a
-        :class:`~multilayer.numerics.linsolve.ReusingSolver` with this policy,
-        which solves it by GMRES on the held factors of an earlier Δt or
-        factorizes it.  None (fixed steps): factorized once, back-substitution only.
     """
 
     def __init__(self, stack: Stack, scheme: TimeScheme, dt: float, stats: SolverStats,
-                 backend: str = "superlu", fluid_line: int | None = None, reuse: Reuse | None = None):
+                 backend: str = "superlu", fluid_line: int | None = None):
         self.stack = stack
         self.scheme = scheme
         self.dt = dt
         self.fluid_line = fluid_line
         self._stats, self._backend = stats, backend
         self._solver = None  # factorized at the first step: a monolithic solve uses only matrix() and rhs()
-        self._solver_dt = dt  # the Δt of the factorized matrix (of the free DOFs' matrix with reuse)
-        self._reusing = None if reuse is None else ReusingSolver(stats, backend, reuse)
+        self._solver_dt = dt  # the Δt of the factorized matrix
 
     def matrix(self, dt: float | None = None):
         """(α₀/β₀) M/Δt + C + (β₀Δt/α₀) K in the wall's numbering (every DOF), for Δt = ``dt`` (default: the run's)."""
@@ -112,14 +106,12 @@ class StructureStep:
         """
         st, dt = self.stack, self.dt if dt is None else dt
         states = state.history(self.scheme.levels - 1)
-        f = st.free
         if self._solver is None or self._solver_dt != dt:
-            matrix = self.matrix(dt).tocsr()[f][:, f]
-            self._solver = matrix if self._reusing is not None else factorize(matrix, self._stats, self._backend)
+            f = st.free
+            self._solver = factorize(self.matrix(dt).tocsr()[f][:, f], self._stats, self._backend)
             self._solver_dt = dt
         mean = np.zeros(st.space.ndofs)
-        rhs = self.rhs(states, forces, dt)[f]
-        mean[f] = self._solver.solve(rhs) if self._reusing is None else self._reusing.solve(self._solver, rhs)
+        mean[st.free] = self._solver.solve(self.rhs(states, forces, dt)[st.free])
         return self.finish(states, mean, forces, dt)
 
     def finish(self, states: Sequence[State], mean: np.ndarray, forces: Mapping[str, np.ndarray],
