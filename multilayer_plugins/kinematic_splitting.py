@@ -25,6 +25,11 @@ thin layer's kinetic energy after A1 is the one A2 starts from, and the β
 force enters A1 and A2 with opposite signs, leaving −Δt β τ̃·(V̄_Γ − v̄) as
 the column ``dissipation.beta`` (a term of the scheme, of either sign, not
 work of a load: the energy bound E ≤ E⁰ + work counts loads only).
+
+With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
+:mod:`multilayer.coupling.clock`), its estimate times :data:`ERROR_CONSTANT`;
+the wall is factorized again when Δt changes, τ̃ of ``extrapolation = 2``
+is extrapolated over the uneven steps.
 """
 
 from __future__ import annotations

@@ -14,6 +14,10 @@ energy identity is the sum of the wall's and the fluid's; what the
 predicted domain misses of the true one is the fluid's geometric remainder
 (``dissipation.geometric.fluid``).  No splitting error: this is the
 accuracy reference of the project, and its cost anchor.
+
+With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
+:mod:`multilayer.coupling.clock`): a new Δt changes the wall's share of the
+matrix (its pattern stays), the extrapolations see the step ratio.
 """
 
 from __future__ import annotations

@@ -9,12 +9,14 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
 
 * the error of a step is the Crank–Nicolson local error estimate
   (:func:`multilayer.numerics.stepsize.local_error`: no extra linear solve) of
-  the wall displacement d, the wall velocity V and the fluid velocity u,
-  each in the max norm over its DOFs relative to that field's peak so far;
-  the largest of the three is the step's relative error e;
-* e is asked per unit step: err = e · T / (kₙ · tol) ≤ 1 (T = ``time.end``),
-  so the local errors of the whole run add up to at most about tol — the
-  run's relative error, not one step's;
+  the wall displacement d and of the fluid velocity's time integral X
+  (:func:`fields`: the velocities through their integrals), each in the max
+  norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
+  the largest of them is the step's relative error e, times the coupler's
+  error constant (its error over Crank–Nicolson's: 10 for the splitting);
+* e is asked per unit of elapsed time: err = e · tⁿ⁺¹ / (kₙ · tol) ≤ 1, so a
+  step may add tol·kₙ/tⁿ⁺¹ of the field's size and the run's errors add up to
+  about tol — the run's relative error, not one step's — whatever ``time.end`` is;
 * Gustafsson's PI controller (:class:`~multilayer.numerics.stepsize.Controller`)
   proposes the next step; a step with err > 1 is rejected and retried
   smaller; one that would go below ``time.dt_min`` stops the run
@@ -180,11 +182,11 @@ class Adaptive:
         record = dict(state.extra.get("clock") or self.start())
         while state.t < self.end * (1.0 - 1e-12):
             window = self.window(state, record["dt"])
-            before = self.factorizations()
+            counted = self.factorizations()
             new, report = advance(state, window)
             new = integrate(state, new)
             if record["last"] and window.dt != record["last"]:
-                record["refactorizations"] += self.factorizations() - before
+                record["refactorizations"] += self.factorizations() - counted
             err = self.error(state, new, window.dt, record)
             if err is not None and err > 1.0:
                 record["rejected"] += 1
@@ -208,10 +210,10 @@ class Adaptive:
                           last=window.dt, accepted=record["accepted"] + 1,
                           smallest=min(record["smallest"] or window.dt, window.dt),
                           largest=max(record["largest"], window.dt))
-            before = fields(state)
+            old_fields = fields(state)
             for name, x in fields(new).items():
                 record[f"peak.{name}"] = max(record[f"peak.{name}"],
-                                             self.size(x, before.get(name, 0.0 * x), new.t, window.dt))
+                                             self.size(x, old_fields.get(name, 0.0 * x), new.t, window.dt))
             landed = float(new.t == self.landing(state.t))
             state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
             yield state, attrs.evolve(report, diagnostics={

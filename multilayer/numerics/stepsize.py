@@ -62,9 +62,9 @@ class Controller:
     """Gustafsson's PI step-size controller on the normalized error err (accept when err ≤ 1).
 
     >>> c = Controller()
-    >>> c.accepted(0.5, 1.0) > 1.0, c.accepted(1.0, 1.0) < 1.0, c.rejected(4.0) < 1.0
+    >>> c.accepted(0.1, 1.0) > 1.0, c.accepted(1.0, 1.0) < 1.0, c.rejected(4.0) < 1.0
     (True, True, True)
-    >>> c.accepted(0.9, 0.9)        # a factor in [1, KEEP): keep the step
+    >>> c.accepted(0.7, 1.0)        # a factor in [1, KEEP): keep the step
     1.0
     """
 
