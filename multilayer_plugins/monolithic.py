@@ -14,6 +14,10 @@ energy identity is the sum of the wall's and the fluid's; what the
 predicted domain misses of the true one is the fluid's geometric remainder
 (``dissipation.geometric.fluid``).  No splitting error: this is the
 accuracy reference of the project, and its cost anchor.
+
+With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
+:mod:`multilayer.coupling.clock`): a new Δt changes the wall's share of the
+matrix (its pattern stays), the extrapolations see the step ratio.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from collections.abc import Iterator
 import numpy as np
 import scipy.sparse as sp
 
+from multilayer.coupling.clock import Window, march
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
     ThickLumen,
@@ -48,6 +53,7 @@ class Monolithic(ThickLumen, Coupler):
     name = "monolithic"
     loads = ("inlet", "outlet", "external")
     schemes = tuple(SCHEMES)
+    adaptive = ("crank-nicolson",)
 
     def check_case(self, case) -> list[str]:
         return super().check_case(case) + coupled_case_problems(self.name, case)
@@ -72,41 +78,47 @@ class Monolithic(ThickLumen, Coupler):
         return glob
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
-        S, dt, fluid, wall, stack = self.scheme, setup.dt, setup.fluid, setup.wall, setup.stack
+        fluid, wall, stack = setup.fluid, setup.wall, setup.stack
         R = wall.restrictions[LUMEN]
-        structure = StructureStep(stack, S, dt, setup.stats("wall"))
+        structure = StructureStep(stack, self.scheme, setup.dt, setup.stats("wall"))
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
-        A_wall = sp.coo_matrix(structure.matrix())
         solver = ReusingSolver(setup.stats("monolithic"), setup.case.solver, setup.case.reuse)
-        layout = None
-        for step, t0, t1 in setup.windows(state.n):
+        held: dict = {"dt": None, "layout": None}  # the wall's matrix of the last Δt, the system's layout
+
+        def advance(state: State, w: Window) -> tuple[State, StepReport]:
+            S, dt, t0, t1 = w.scheme, w.dt, w.t0, w.t1
+            if held["dt"] != dt:  # a new Δt (adaptive steps): the wall's matrix changes, its pattern does not
+                held["dt"], held["wall"] = dt, sp.coo_matrix(structure.matrix(dt))
+            A_wall, layout = held["wall"], held["layout"]
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
             domain = predicted_domain(S, history, dt)
             system = fluid.system([x.fluid for x in history], domain, S, dt, (t0, t1))
             A_f, b_f, fixed_f, values_f = fluid.matrix(system)
-            if layout is None or not layout.fits(A_f):
-                layout = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
+            if layout is None or not layout.fits(A_f, A_wall):
+                layout = held["layout"] = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
             forces = {"external": external_force(setup, loads["external"])}
             data = layout.fill(A_f.data, A_wall.data)
             b = np.zeros(n)
             b[: fluid.ndofs] = b_f
-            np.add.at(b, glob, structure.rhs(history, forces))
+            np.add.at(b, glob, structure.rhs(history, forces, dt))
             x = np.zeros(n)
             x[fixed_f] = values_f
             rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
             x[layout.free] = solver.solve(layout.free_free.matrix(data, keep=True), rhs)
             # each part takes back its share of the solution
             solution = fluid.advance(system, x[: fluid.ndofs])
-            w = structure.finish(history, x[glob], forces)
-            eta_new = R @ w.wall.d
+            wstep = structure.finish(history, x[glob], forces, dt)
+            eta_new = R @ wstep.wall.d
             terms = fluid.identity(system, solution, state.eta, eta_new)
-            state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
-                               v=fluid.wall_velocity(solution.state), eta=eta_new)
+            new = state.then(S.old_levels, n=w.n + 1, t=t1, wall=wstep.wall, fluid=solution.state,
+                             v=fluid.wall_velocity(solution.state), eta=eta_new)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
-            yield state, StepReport({**w.stored, **stored_f}, {**w.work, **work_f}, {**w.dissipation, **dissipation_f},
-                                    fluid_columns(terms))
+            return new, StepReport({**wstep.stored, **stored_f}, {**wstep.work, **work_f},
+                                   {**wstep.dissipation, **dissipation_f}, fluid_columns(terms))
+
+        return march(setup, self.scheme, state, advance)
 
 
 class Layout:
@@ -118,6 +130,7 @@ class Layout:
 
     def __init__(self, A_f: sp.csr_matrix, A_wall: sp.coo_matrix, glob: np.ndarray, fixed: np.ndarray, n: int):
         self.indptr, self.indices = A_f.indptr.copy(), A_f.indices.copy()  # the fluid's pattern
+        self.wall = (A_wall, A_wall.row.copy(), A_wall.col.copy())  # the wall's
         f = A_f.tocoo()
         fluid_entries = (f.row.astype(np.int64), f.col.astype(np.int64))
         wall_entries = (glob[A_wall.row], glob[A_wall.col])
@@ -128,9 +141,11 @@ class Layout:
         self.free_free = self.pattern.block(self.free, self.free)
         self.free_fixed = self.pattern.block(self.free, self.fixed)
 
-    def fits(self, A_f: sp.csr_matrix) -> bool:
-        """True when the fluid's matrix still has the pattern this layout was built for."""
-        return np.array_equal(A_f.indptr, self.indptr) and np.array_equal(A_f.indices, self.indices)
+    def fits(self, A_f: sp.csr_matrix, A_wall: sp.coo_matrix) -> bool:
+        """True when the fluid's and the wall's matrices still have the patterns this layout was built for."""
+        wall = A_wall is self.wall[0] or (np.array_equal(A_wall.row, self.wall[1])
+                                          and np.array_equal(A_wall.col, self.wall[2]))
+        return wall and np.array_equal(A_f.indptr, self.indptr) and np.array_equal(A_f.indices, self.indices)
 
 
 @hookimpl

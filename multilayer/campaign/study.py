@@ -55,7 +55,9 @@ TARGETS = (0.05, 0.01)
 #: the coupler the costs are also given relative to, when it is in the study
 BASELINE = "kinematic-splitting"
 #: key paths a compared run may differ in from the reference (the reference may stop earlier: ``time.end``)
-FREE_KEYS = ("title", "coupler", "time.dt", "time.end", "mesh", "output.every")
+#: the keys of adaptive steps: a run with ``time.tolerance`` is compared by its tolerance, not by Δt
+ADAPTIVE = ("tolerance", "dt_min", "dt_max", "output_interval")
+FREE_KEYS = ("title", "coupler", "time.dt", "time.end", "mesh", "output.every", *(f"time.{k}" for k in ADAPTIVE))
 #: key paths in which the runs of the reference's own Δt sequence differ from it (Richardson)
 SIBLING_KEYS = ("title", "time.dt", "output.every")
 #: an observed order outside this range is not trusted for Richardson: the formal order is used
@@ -126,6 +128,7 @@ def _row(planned: Planned, run: RunData, position: int) -> dict[str, Any]:
         "dofs": dofs,
         "dofs_total": sum(dofs.values()) if dofs else None,
         "dt": (case.get("time") or {}).get("dt"),
+        "tolerance": (case.get("time") or {}).get("tolerance"),  # adaptive steps (Δt is then the first step)
         "nz": (case.get("mesh") or {}).get("nz"),
         "order": scheme_order(s),
         "reference": False,
@@ -149,7 +152,7 @@ def choose_reference(rows: Sequence[Mapping[str, Any]]) -> int | None:
     >>> choose_reference(rows)
     2
     """
-    ok = [i for i, r in enumerate(rows) if r["status"] == "ok" and r["dt"] is not None]
+    ok = [i for i, r in enumerate(rows) if r["status"] == "ok" and r["dt"] is not None and not r.get("tolerance")]
     if not ok:
         return None
     return min(ok, key=lambda i: (-rows[i]["order"], rows[i]["coupler_index"], rows[i]["dt"], -(rows[i]["nz"] or 0)))
@@ -159,14 +162,27 @@ def _measured(row: Mapping[str, Any]) -> bool:
     return row["status"] == "ok" and not row["reference"] and row["error"] is not None
 
 
-def dt_sequences(rows: Sequence[dict[str, Any]]) -> dict[tuple, list[dict[str, Any]]]:
-    """Runs of one coupler with the same values of every varied key but time.dt, coarse Δt first."""
+def dt_sequences(rows: Sequence[dict[str, Any]], by: str = "dt") -> dict[tuple, list[dict[str, Any]]]:
+    """Runs of one coupler with the same values of every varied key but time.dt, coarse Δt first.
+
+    ``by = "tolerance"``: the adaptive runs instead, by the same values of every key but time.tolerance
+    and time.dt (their first step), loose tolerance first.
+    """
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for row in rows:
-        if _measured(row):
-            key = (row["coupler"], tuple((k, v) for k, v in row["values"].items() if k != "time.dt"))
+        if _measured(row) and bool(row.get("tolerance")) == (by == "tolerance"):
+            key = (row["coupler"], tuple((k, v) for k, v in row["values"].items()
+                                         if k not in ("time.dt", f"time.{by}")))
             groups.setdefault(key, []).append(row)
-    return {k: sorted(g, key=lambda r: -r["dt"]) for k, g in groups.items()}
+    return {k: sorted(g, key=lambda r: -r[by]) for k, g in groups.items()}
+
+
+def calibration_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The adaptive runs: error against tolerance (their ratio should stay near 1), steps and wall time."""
+    return [{"coupler": coupler, "group": dict(others), "run": r["label"], "tolerance": r["tolerance"],
+             "error": r["error"], "peak_error": r["peak_error"], "ratio": r["error"] / r["tolerance"],
+             "steps": r["steps"], "wall_time_s": r["wall_time_s"]}
+            for (coupler, others), group in dt_sequences(rows, "tolerance").items() for r in group]
 
 
 def orders_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -239,7 +255,7 @@ def cost_table(rows: Sequence[dict[str, Any]], orders: Sequence[Mapping[str, Any
     out = []
     for choice in couplers:
         own = [r for r in rows if r["coupler"] == choice.label and _measured(r) and r["peak_error"] is not None
-               and r["wall_time_s"] is not None]
+               and r["wall_time_s"] is not None and not r.get("tolerance")]
         finest = min(range(len(own)), key=lambda i: (own[i]["dt"], -(own[i]["nz"] or 0))) if own else None
         order = next((o["peak_error_order"] for o in orders if own and o["fine"] == own[finest]["label"]), None)
         for target in TARGETS:
@@ -306,6 +322,7 @@ def collect(planned: Sequence[Planned], runs: Mapping[str, RunData], couplers: S
         "space_error_included": usable and any(r["compared"] and r["nz"] != ref_info["nz"] for r in rows),
         "runs": rows,
         "orders": orders,
+        "adaptive": calibration_table(rows),
         "pareto": sorted((measured[i]["label"] for i in front),
                          key=lambda label: next(r["wall_time_s"] for r in measured if r["label"] == label)),
         "cost_to_target": cost_table(rows, orders, couplers),

@@ -1,4 +1,5 @@
-"""The study's report as people read it: ``study.json``, ``study.md``, ``pareto.png`` and ``orders.png``.
+"""The study's report as people read it: ``study.json``, ``study.md``, ``pareto.png``, ``orders.png`` (and
+``tolerance.png`` when adaptive runs are in it).
 
 Everything here is drawn from :func:`multilayer.campaign.study.study_data`'s
 dictionary alone, so a report can be made again from a ``study.json``.
@@ -61,7 +62,8 @@ def markdown(data: Mapping[str, Any]) -> str:
     for r in rows:
         arrivals = [abs(e["arrival_diff_s"]) for e in r["probes"].values() if e["arrival_diff_s"] is not None]
         error = "(reference)" if r["reference"] else ("not compared" if r["not_compared"] else cell(r["error"]))
-        lines.append(f"| `{r['label']}` | {r['status']} | {cell(r['dt'])} | {cell(r['nz'])} | "
+        step = f"adaptive, tol {cell(r['tolerance'])}" if r.get("tolerance") else cell(r["dt"])
+        lines.append(f"| `{r['label']}` | {r['status']} | {step} | {cell(r['nz'])} | "
                      f"{cell(r['wall_time_s'])} | {cell(r['steps'])} | {cell(r['dofs_total'])} | {error} | "
                      f"{cell(r['peak_error'])} | {cell(max(arrivals) if arrivals else None)} |")
     notes = [f"- `{r['label']}`: {r['reason'] or r['not_compared']}" for r in rows
@@ -81,6 +83,16 @@ def markdown(data: Mapping[str, Any]) -> str:
                          f"{cell(o['error_order'])} | {cell(o['peak_error_order'])} |")
     else:
         lines.append("No order: no two measured runs of one coupler differ only in Δt.")
+    if data.get("adaptive"):
+        lines += ["", "## Adaptive steps", "", "Runs with `time.tolerance`: the error they reached against the "
+                  "tolerance asked (calibrated when the ratio stays near 1), their accepted steps and wall time.", "",
+                  "| coupler | other keys | tolerance | error | error / tolerance | peak error | steps | "
+                  "wall time (s) |", "|---|---|---|---|---|---|---|---|"]
+        for a in data["adaptive"]:
+            others = ", ".join(f"{k}={v}" for k, v in a["group"].items()) or "—"
+            lines.append(f"| `{a['coupler']}` | {others} | {cell(a['tolerance'])} | {cell(a['error'])} | "
+                         f"{cell(a['ratio'])} | {cell(a['peak_error'])} | {cell(a['steps'])} | "
+                         f"{cell(a['wall_time_s'])} |")
     lines += ["", "## Pareto front", "", "The runs no other run beats on both wall time and error; slower "
               "runs in this table are more accurate. A run not listed is slower and less accurate than one "
               "that is.", ""]
@@ -114,6 +126,8 @@ def markdown(data: Mapping[str, Any]) -> str:
                 cells.append(cell(c["ratio_to_baseline"]))
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", "![error against wall time](pareto.png)", "", "![error against Δt](orders.png)", ""]
+    if data.get("adaptive"):
+        lines += ["![error against tolerance](tolerance.png)", ""]
     return "\n".join(lines)
 
 
@@ -128,12 +142,13 @@ def plot(data: Mapping[str, Any], out: Path) -> None:
     fig = Figure(figsize=(7, 5), layout="constrained")
     ax = fig.subplots()
     colours = {}
-    for (coupler, _), group in dt_sequences(rows).items():  # a line per Δt sweep, one colour per coupler
-        group = [r for r in group if r["error"] > 0 and r["wall_time_s"] is not None]
-        if group:
-            line, = ax.plot([r["wall_time_s"] for r in group], [r["error"] for r in group], "o-",
-                            color=colours.get(coupler), label=None if coupler in colours else coupler)
-            colours.setdefault(coupler, line.get_color())
+    for by, style, tag in (("dt", "o-", ""), ("tolerance", "s--", " (adaptive)")):  # a line per Δt or tol sweep
+        for (coupler, _), group in dt_sequences(rows, by).items():
+            group = [r for r in group if r["error"] > 0 and r["wall_time_s"] is not None]
+            if group:
+                line, = ax.plot([r["wall_time_s"] for r in group], [r["error"] for r in group], style,
+                                color=colours.get(coupler + tag), label=None if coupler + tag in colours else coupler + tag)
+                colours.setdefault(coupler + tag, line.get_color())
     front = [r for r in rows if r["label"] in data["pareto"] and r["error"] > 0]
     if front:
         ax.plot([r["wall_time_s"] for r in front], [r["error"] for r in front], "o", ms=12, mfc="none",
@@ -174,6 +189,33 @@ def plot(data: Mapping[str, Any], out: Path) -> None:
     ax.set_ylabel(ERROR_AXIS)
     ax.grid(alpha=0.3, which="both")
     save_figure(fig, claim(out, "orders.png"))
+    if data.get("adaptive"):
+        _tolerance_plot(data, out)
+
+
+def _tolerance_plot(data: Mapping[str, Any], out: Path) -> None:
+    """``tolerance.png``: the adaptive runs' error against their tolerance, with error = tol and its × 3 band."""
+    from matplotlib.figure import Figure
+
+    from multilayer.results.figures import save_figure
+
+    fig = Figure(figsize=(7, 5), layout="constrained")
+    ax = fig.subplots()
+    for (coupler, others), group in dt_sequences(data["runs"], "tolerance").items():
+        group = [r for r in group if r["error"] > 0]
+        if group:
+            ax.plot([r["tolerance"] for r in group], [r["error"] for r in group], "s-",
+                    label=coupler + "".join(f", {k}={v}" for k, v in others))
+    tols = np.array(sorted({a["tolerance"] for a in data["adaptive"]}))
+    ax.plot(tols, tols, color="gray", label="error = tolerance")
+    ax.fill_between(tols, tols / 3, tols * 3, color="gray", alpha=0.15, label="× 3")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.legend(fontsize="small")
+    ax.set_xlabel("time.tolerance")
+    ax.set_ylabel(ERROR_AXIS)
+    ax.grid(alpha=0.3, which="both")
+    save_figure(fig, claim(out, "tolerance.png"))
 
 
 def write(out: Path, data: Mapping[str, Any]) -> None:

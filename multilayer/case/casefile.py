@@ -263,7 +263,7 @@ class _Validator:
             "title": title,
             "geometry": {k: v for k, v in geometry.items() if k != "params"} | dict(geometry["params"]),
             "mesh": mesh,
-            "time": time,
+            "time": {k: v for k, v in time.items() if v is not None},  # unset adaptive keys: no trace
             "fluid": None if fluid is None else {"model": fluid.model, **fluid.params},
             "layers": [
                 {"model": layer.model, **layer.params, **({} if layer.thin else {"cells": layer.cells})}

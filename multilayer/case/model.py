@@ -33,10 +33,28 @@ class MeshSpec:
     grading: float = 1.0  #: fluid grading toward the wall (1 = uniform)
 
 
+#: the smallest adaptive step when time.dt_min is not set, as a fraction of time.dt
+DT_MIN_FRACTION = 1e-6
+
+
 @attrs.frozen
 class TimeSpec:
     end: float  #: T (s)
-    dt: float  #: Δt (s)
+    dt: float  #: Δt (s); with ``tolerance`` the first step
+    tolerance: float | None = None  #: adaptive steps: the relative error allowed (None: fixed steps of dt)
+    dt_min: float | None = None  #: adaptive steps: the smallest step (s; None: dt × :data:`DT_MIN_FRACTION`)
+    dt_max: float | None = None  #: adaptive steps: the largest step (s; None: no bound)
+    output_interval: float | None = None  #: adaptive steps land on its multiples (s)
+
+    @property
+    def adaptive(self) -> bool:
+        """True when the steps are chosen by error (``tolerance`` set)."""
+        return self.tolerance is not None
+
+    @property
+    def smallest(self) -> float:
+        """The smallest step an adaptive run may take (s)."""
+        return self.dt_min if self.dt_min is not None else self.dt * DT_MIN_FRACTION
 
     @property
     def steps(self) -> int:

@@ -34,7 +34,7 @@ from typing import Any
 
 import attrs
 
-from multilayer.case.schema import MAX_STEPS, STEPS_TOL
+from multilayer.case.schema import ADAPTIVE_KEYS, MAX_STEPS, STEPS_TOL
 from multilayer.plugin.problems import Problem
 
 #: Peak memory of a run per unknown (bytes) at :data:`DOFS_MEASURED` unknowns, measured and rounded up.
@@ -134,9 +134,16 @@ def gigabytes(n: float) -> str:
 
 
 def steps_problems(time: Mapping[str, float]) -> list[Problem]:
-    """A run of too many steps (beyond :data:`MAX_STEPS`), or ``time.end`` not a whole number of steps."""
+    """A run of too many steps (beyond :data:`MAX_STEPS`), or ``time.end`` not a whole number of steps;
+    with ``time.tolerance`` (adaptive steps) the bounds of the step instead (:func:`adaptive_problems`)."""
     if "end" not in time or "dt" not in time:
         return []
+    if time.get("tolerance") is not None:
+        return adaptive_problems(time)
+    unused = [Problem(f"time.{key}", time[key], "read only with adaptive steps", "set time.tolerance, or remove it")
+              for key in ADAPTIVE_KEYS if time.get(key) is not None]
+    if unused:
+        return unused
     steps = time["end"] / time["dt"]
     if not steps <= MAX_STEPS:  # also end/dt = inf
         return [Problem("time.dt", time["dt"], f"{steps:.3g} steps to time.end = {time['end']:g}; expected at most "
@@ -144,6 +151,27 @@ def steps_problems(time: Mapping[str, float]) -> list[Problem]:
     if round(steps) < 1 or abs(steps - round(steps)) > STEPS_TOL * max(1.0, steps):
         return [Problem("time.end", time["end"], f"expected a whole number (>= 1) of steps dt = {time['dt']:g}",
                         f"end/dt = {steps:.6g}")]
+    return []
+
+
+def adaptive_problems(time: Mapping[str, float]) -> list[Problem]:
+    """The bounds of adaptive steps: dt_min ≤ dt ≤ dt_max, at most :data:`MAX_STEPS` steps of dt_min.
+
+    >>> print(*adaptive_problems({"end": 1.0, "dt": 1e-3, "tolerance": 1e-3, "dt_min": 1e-2, "dt_max": 1e-4}))
+    time.dt_min = 0.01: expected at most time.dt_max = 0.0001
+    >>> adaptive_problems({"end": 1.0, "dt": 1e-3, "tolerance": 1e-3, "dt_min": 1e-4})
+    []
+    """
+    lo, hi, dt = time.get("dt_min"), time.get("dt_max"), time["dt"]
+    if lo is not None and hi is not None and lo > hi:
+        return [Problem("time.dt_min", lo, f"expected at most time.dt_max = {hi:g}")]
+    if lo is not None and dt < lo:
+        return [Problem("time.dt", dt, f"expected at least time.dt_min = {lo:g} (the first step)")]
+    if hi is not None and dt > hi:
+        return [Problem("time.dt", dt, f"expected at most time.dt_max = {hi:g} (the first step)")]
+    if lo is not None and not time["end"] / lo <= MAX_STEPS:
+        return [Problem("time.dt_min", lo, f"{time['end'] / lo:.3g} steps of it to time.end = "
+                        f"{time['end']:g}; expected at most {MAX_STEPS:.0e}", "set a larger time.dt_min")]
     return []
 
 

@@ -33,8 +33,19 @@ MESH = (
 )
 TIME = (
     Param("end", "T", "s", gt=0.0, doc="final time"),
-    Param("dt", "Δt", "s", gt=0.0, doc="time step"),
+    Param("dt", "Δt", "s", gt=0.0, doc="time step (with tolerance: the first step)"),
+    Param("tolerance", default=None, gt=0.0, lt=1.0,
+          doc="adaptive steps: the relative error the run may accumulate in the wall's displacement and velocity "
+              "and the fluid's velocity (each in the max norm over its DOFs, relative to its peak so far); "
+              "unset: every step is dt"),
+    Param("dt_min", "", "s", default=None, gt=0.0,
+          doc="adaptive steps: the smallest step; a step the error would make smaller stops the run"),
+    Param("dt_max", "", "s", default=None, gt=0.0, doc="adaptive steps: the largest step"),
+    Param("output_interval", "", "s", default=None, gt=0.0,
+          doc="adaptive steps: a step lands on every multiple of it (snapshots are written there)"),
 )
+#: the keys of [time] that only adaptive steps (time.tolerance) read
+ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval")
 
 
 #: radial cells of a thick layer: a core key, not a plugin parameter (its upper bound: the memory check)
@@ -85,9 +96,10 @@ STEPS_TOL = 1e-6
 
 
 #: Columns of ``series.csv`` a probe may not be named: the step, the time and the coupler's iteration count ...
-RESERVED_COLUMNS = ("step", "t", "iterations")
+RESERVED_COLUMNS = ("step", "t", "iterations", "dt", "landed")
 #: ... and every column of the energy ledger and of the ends' and couplers' diagnostics, by its prefix.
-RESERVED_PREFIXES = ("energy.", "kinetic.", "elastic.", "stored.", "work.", "dissipation.", "end.", "interface.")
+RESERVED_PREFIXES = ("energy.", "kinetic.", "elastic.", "stored.", "work.", "dissipation.", "end.", "interface.",
+                     "error.")
 
 
 def reserved_column(name: str) -> bool:

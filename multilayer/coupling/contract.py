@@ -53,6 +53,8 @@ class Coupler(ABC):
     loads: ClassVar[tuple[str, ...]] = ()
     #: the time schemes (:data:`multilayer.numerics.timescheme.SCHEMES`) it offers; its ``scheme`` parameter
     schemes: ClassVar[tuple[str, ...]] = ("backward-euler",)
+    #: the schemes with which it takes adaptive steps (``[time] tolerance``): those it has an error estimate for
+    adaptive: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, scheme: str = "backward-euler"):
         if scheme not in self.schemes:
@@ -71,7 +73,21 @@ class Coupler(ABC):
             return not load.at_rest() if key in ("inlet", "outlet") else not is_zero(load)
 
         return [f"loads.{key} is set, but {name} does not apply it (it applies: {', '.join(self.loads) or 'none'})"
-                for key in ("inlet", "outlet", "external", "interface") if key not in self.loads and set_(key)]
+                for key in ("inlet", "outlet", "external", "interface") if key not in self.loads and set_(key)
+                ] + self.adaptive_problems(case)
+
+    def adaptive_problems(self, case: Case) -> list[str]:
+        """Why ``case``'s adaptive steps (``time.tolerance``) cannot be taken: no error estimate for the scheme."""
+        if case.time.tolerance is None or self.scheme.name in self.adaptive:
+            return []
+        name = getattr(self, "name", type(self).__name__)
+        offered = (f"it takes them with scheme = {' or '.join(repr(s) for s in self.adaptive)}" if self.adaptive
+                   else "choose 'monolithic' or 'kinematic-splitting' with scheme = 'crank-nicolson'")
+        why = "first order" if self.scheme.order == 1 else "a multistep rule without variable-step coefficients here"
+        reason = (f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
+                  f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is {why}); "
+                  f"{offered}, or remove time.tolerance")
+        return [reason]
 
     def fluid_wall(self, case: Case) -> str:
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""

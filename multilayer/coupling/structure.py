@@ -8,7 +8,8 @@ test-level velocity V̄ = Σβ_k V^{n+1−k}:
 
 (h_i the old levels of layer i's velocity, d̄_old the old displacements'
 share of d̄).  With constant Δt this matrix never changes: it is factorized
-when the step is built and only back-substitution runs per step.  For
+at the first step and only back-substitution runs per step (adaptive steps
+factorize it again when Δt changes).  For
 backward Euler it is M/Δt² + C/Δt + K of theory §6 A1, scaled by Δt.
 
 Each layer's inertia uses that layer's own old velocity: in a partitioned
@@ -57,7 +58,7 @@ class StructureStep:
     scheme : TimeScheme
         The time discretization.
     dt : float
-        Δt (s), constant over the run.
+        Δt (s): the run's, or the first of adaptive steps (each step may pass its own).
     stats : SolverStats
         Where factorizations and solves are counted.
     backend : str
@@ -75,10 +76,11 @@ class StructureStep:
         self.fluid_line = fluid_line
         self._stats, self._backend = stats, backend
         self._solver = None  # factorized at the first step: a monolithic solve uses only matrix() and rhs()
+        self._solver_dt = dt  # the Δt of the factorized matrix
 
-    def matrix(self):
-        """(α₀/β₀) M/Δt + C + (β₀Δt/α₀) K in the wall's numbering (every DOF)."""
-        st, s, dt = self.stack, self.scheme, self.dt
+    def matrix(self, dt: float | None = None):
+        """(α₀/β₀) M/Δt + C + (β₀Δt/α₀) K in the wall's numbering (every DOF), for Δt = ``dt`` (default: the run's)."""
+        st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
         return st.mass * (s.inertia / dt) + st.damping + st.stiffness * s.displacement_gain(dt)
 
     # -- levels -----------------------------------------------------------------
@@ -86,32 +88,36 @@ class StructureStep:
         """The velocity layer ``index`` sees as its own in ``state`` (see :func:`own_velocity`)."""
         return own_velocity(self.stack, index, state, self.fluid_line)
 
-    def rhs(self, states: Sequence[State], forces: Mapping[str, np.ndarray]) -> np.ndarray:
+    def rhs(self, states: Sequence[State], forces: Mapping[str, np.ndarray], dt: float | None = None) -> np.ndarray:
         """F̄ − Σ_i M_i h_i/Δt − K d̄_old for the old levels ``states`` (newest first)."""
-        st, s, dt = self.stack, self.scheme, self.dt
+        st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
         b = sum(forces.values(), np.zeros(st.space.ndofs))
         for i, m in enumerate(st.matrices):
             b = b - m.mass @ s.history([self.own_velocity(i, x) for x in states]) / dt
         return b - st.stiffness @ s.displacement_average_history([x.wall.d for x in states])
 
-    def step(self, state: State, forces: Mapping[str, np.ndarray]) -> WallStep:
-        """Advance by Δt from ``state`` under ``forces`` (name → load vector F̄ in wall numbering).
+    def step(self, state: State, forces: Mapping[str, np.ndarray], dt: float | None = None) -> WallStep:
+        """Advance by Δt (``dt``, default the run's) from ``state`` under ``forces`` (name → load vector F̄ in
+        wall numbering).
 
         Returns the new wall and the terms of the step's energy identity
-        (energy at the end of the step, work, dissipation).
+        (energy at the end of the step, work, dissipation).  A Δt other than
+        the last step's changes the matrix: it is factorized again.
         """
-        st = self.stack
+        st, dt = self.stack, self.dt if dt is None else dt
         states = state.history(self.scheme.levels - 1)
-        if self._solver is None:
+        if self._solver is None or self._solver_dt != dt:
             f = st.free
-            self._solver = factorize(self.matrix().tocsr()[f][:, f], self._stats, self._backend)
+            self._solver = factorize(self.matrix(dt).tocsr()[f][:, f], self._stats, self._backend)
+            self._solver_dt = dt
         mean = np.zeros(st.space.ndofs)
-        mean[st.free] = self._solver.solve(self.rhs(states, forces)[st.free])
-        return self.finish(states, mean, forces)
+        mean[st.free] = self._solver.solve(self.rhs(states, forces, dt)[st.free])
+        return self.finish(states, mean, forces, dt)
 
-    def finish(self, states: Sequence[State], mean: np.ndarray, forces: Mapping[str, np.ndarray]) -> WallStep:
+    def finish(self, states: Sequence[State], mean: np.ndarray, forces: Mapping[str, np.ndarray],
+               dt: float | None = None) -> WallStep:
         """The new wall from V̄ solved (here or in a monolithic system), and the identity's terms."""
-        st, s, dt = self.stack, self.scheme, self.dt
+        st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
         d = s.displacement(mean, [x.wall.d for x in states], dt)
         V = s.new_level(mean, [x.wall.V for x in states])
         new_v = None

@@ -58,12 +58,30 @@ class TimeScheme:
         Coefficients of x^{n+1}, xⁿ, x^{n−1}, ... (Σα = 0, Σβ = 1).
     order : int
         Order of accuracy in time.
+    ratio : float
+        ω = Δtⁿ/Δtⁿ⁻¹, the step's ratio to the one before (1 for constant steps): only the
+        extrapolations see it, Crank–Nicolson's α and β do not depend on it (:meth:`with_ratio`).
     """
 
     name: str
     alpha: tuple[float, ...]
     beta: tuple[float, ...]
     order: int
+    ratio: float = 1.0
+
+    def with_ratio(self, ratio: float) -> TimeScheme:
+        """This rule for a step ω = ``ratio`` times the one before.
+
+        One-step rules keep their coefficients (Crank–Nicolson's identity holds
+        step by step with that step's Δt); BDF2's would change with ω, which is
+        not offered, so asking for it is an error.
+
+        >>> SCHEMES["crank-nicolson"].with_ratio(2.0).extrapolate([1.0, 0.0])
+        2.0
+        """
+        if ratio != 1.0 and self.levels > 2:
+            raise ValueError(f"{self.name} has no variable-step coefficients here; only one-step rules change Δt")
+        return attrs.evolve(self, ratio=float(ratio))
 
     @property
     def levels(self) -> int:
@@ -128,6 +146,8 @@ class TimeScheme:
     def extrapolate(self, old: Sequence[np.ndarray]) -> np.ndarray:
         """x at tⁿ + θΔt from the old levels, to the scheme's order (xⁿ for first order).
 
+        The old levels are Δtⁿ⁻¹ = Δt/ω apart: x̃ = xⁿ + θω(xⁿ − xⁿ⁻¹).
+
         A second-order scheme needs :attr:`old_levels` = 2 levels here: with
         one it would silently be first order, so that is an error.
         """
@@ -135,7 +155,7 @@ class TimeScheme:
             return old[0]
         if len(old) < 2:
             raise ValueError(f"{self.name} extrapolates from two old levels, got {len(old)}")
-        return old[0] + self.theta * (old[0] - old[1])
+        return old[0] + self.theta * self.ratio * (old[0] - old[1])
 
     def geometry(self, etas: Sequence[np.ndarray]) -> np.ndarray:
         """The wall displacement a fluid step is assembled on, from η^{n+1}, ηⁿ (newest first).

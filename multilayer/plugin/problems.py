@@ -155,8 +155,8 @@ def check_params(
                 checked[param.name] = param.default
             continue
         raw = values[param.name]
-        if raw is None and param.default is None:
-            checked[param.name] = None  # resolved JSON writes an unset option as null
+        if (raw is None or (raw == "none" and param.type is not str)) and param.default is None:
+            checked[param.name] = None  # resolved JSON writes an unset option as null; "none" (--set, --vary) unsets
             continue
         value, ok = check_value(param, raw)
         if ok:

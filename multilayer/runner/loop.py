@@ -33,6 +33,7 @@ import attrs
 import numpy as np
 
 from multilayer.case.model import Case
+from multilayer.coupling import clock
 from multilayer.coupling.build import prepare
 from multilayer.coupling.contract import Coupler, SchemeFailure
 from multilayer.numerics.threads import blas_threads
@@ -216,6 +217,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
                 state = coupler.initial_state(setup)
         if tally is None:
             tally = Tally.start(setup, coupler, state)
+        tally.clock = state.extra.get("clock")
         probes = setup.probe_rows(case.output.probes)
         with signals.writing():
             writers = Writers(results, setup, saved, ["step", "t", *coupler.energy(setup, state),
@@ -266,6 +268,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "steps": tally.steps,
         "t": tally.t,
         "dt": case.time.dt,
+        **clock.summary(tally.clock, case.time.tolerance),
         "scheme": _scheme(coupler),
         "wall_time_s": tally.wall_time_s + time.perf_counter() - wall_t0,
         "timings": _timings(setup),
@@ -328,8 +331,11 @@ class Writers:
                     raise
 
     def fields(self, step: Step) -> None:
-        """The snapshots, every ``[output] every`` steps."""
-        if self.every and step.n % self.every == 0:
+        """The snapshots, every ``[output] every`` steps; with adaptive steps at every step that landed on an
+        output time (``time.output_interval``, ``time.end``)."""
+        if not self.every:
+            return
+        if step.diagnostics.get("landed", 0.0) if self.setup.case.time.adaptive else step.n % self.every == 0:
             with self.signals.writing():
                 _snapshot(self.setup, step.state, self.results)
 

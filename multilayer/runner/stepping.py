@@ -103,6 +103,8 @@ class Tally:
     iterations: list[float] = attrs.field(factory=list)
     peaks: dict[str, float] = attrs.field(factory=dict)
     wall_time_s: float = 0.0  #: wall time of earlier sessions of a resumed run
+    #: the adaptive steps' controller record of the latest state (``State.extra["clock"]``; None for fixed steps)
+    clock: dict | None = None
 
     @classmethod
     def start(cls, setup: Setup, coupler: Coupler, state: State) -> Tally:
@@ -195,7 +197,7 @@ def iterate_steps(setup: Setup, coupler: Coupler, state: State, tally: Tally, pr
             step = Step(new.n, new.t, terms, values, dict(report.diagnostics), new, row)
             if output is not None:
                 output.row(step)
-            tally.steps, tally.t = new.n, new.t
+            tally.steps, tally.t, tally.clock = new.n, new.t, new.extra.get("clock")
             tally.max_rel = max(tally.max_rel, terms["energy.relative_residual"])
             for name in eta_probes:
                 tally.peaks[name] = max(tally.peaks.get(name, 0.0), abs(row[name]))

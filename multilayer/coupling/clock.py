@@ -1,0 +1,230 @@
+"""The steps of a coupler's run: fixed Δt, or Δt chosen by error (``[time] tolerance``), with rejection and retry.
+
+A coupler that offers adaptive steps writes one step as a function
+``advance(state, window) -> (new state, report)`` and hands it to
+:func:`march`, which yields the accepted steps.  The state is a value, so
+a rejected step is simply dropped: the retry starts from the same state.
+
+Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps"):
+
+* the error of a step is the Crank–Nicolson local error estimate
+  (:func:`multilayer.numerics.stepsize.local_error`: no extra linear solve) of
+  the wall displacement d and of the fluid velocity's time integral X
+  (:func:`fields`: the velocities through their integrals), each in the max
+  norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
+  the largest of them is the step's relative error e, times the coupler's
+  error constant (its error over Crank–Nicolson's: 10 for the splitting);
+* e is asked per unit of elapsed time: err = e · tⁿ⁺¹ / (kₙ · tol) ≤ 1, so a
+  step may add tol·kₙ/tⁿ⁺¹ of the field's size and the run's errors add up to
+  about tol — the run's relative error, not one step's — whatever ``time.end`` is;
+* Gustafsson's PI controller (:class:`~multilayer.numerics.stepsize.Controller`)
+  proposes the next step; a step with err > 1 is rejected and retried
+  smaller; one that would go below ``time.dt_min`` stops the run
+  (:class:`SchemeFailure`, every row so far kept);
+* the first two steps are ``time.dt`` (the estimate needs three old levels);
+* steps are clipped to land on ``time.end`` and on every multiple of
+  ``time.output_interval`` (two equal steps instead of a sliver);
+* everything the controller carries (its proposal, its last error, the
+  peaks, the counts) is the state's ``extra["clock"]``: a checkpoint keeps
+  it, so a resumed run takes the same steps.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+
+import attrs
+import numpy as np
+
+from multilayer.coupling.contract import SchemeFailure, StepReport
+from multilayer.numerics.stepsize import Controller, local_error
+from multilayer.numerics.timescheme import TimeScheme
+from multilayer.scene.setup import Setup
+from multilayer.scene.state import State
+
+#: the fields whose error an adaptive step controls, by name
+FIELDS = ("wall.d", "fluid.X")
+
+
+@attrs.frozen
+class Window:
+    """One step as a coupler takes it: number n of the old level, [t0, t1], Δt, the scheme (its step ratio set)."""
+
+    n: int
+    t0: float
+    t1: float
+    dt: float
+    scheme: TimeScheme
+
+
+Advance = Callable[[State, Window], tuple[State, StepReport]]
+
+
+def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance,
+          error_constant: float = 1.0) -> Iterator[tuple[State, StepReport]]:
+    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance.
+
+    ``error_constant``: the coupler's local error over Crank–Nicolson's at the same Δt (1 for a scheme
+    that is Crank–Nicolson, like ``monolithic``): the estimate is multiplied by it.
+    """
+    if not setup.case.time.adaptive:
+        for n, t0, t1 in setup.windows(state.n):
+            state, report = advance(state, Window(n, t0, t1, setup.dt, scheme))
+            yield state, report
+        return
+    yield from Adaptive(setup, scheme, error_constant).march(state, advance)
+
+
+def fields(state: State) -> dict[str, np.ndarray]:
+    """The controlled fields of ``state``, by the names of :data:`FIELDS` (those it has).
+
+    ``wall.d`` is the displacement of every layer, the time integral of the
+    wall velocity; ``fluid.X`` the time integral of the fluid velocity,
+    X^{n+1} = Xⁿ + Δt (u^{n+1} + uⁿ)/2, carried in ``extra`` (:func:`integrate`).
+    Not the velocities themselves: Crank–Nicolson carries stiff modes undamped,
+    as (−1)ⁿ oscillations of V and u that no step size removes once they are
+    there (on the pulse case the splitting's V jumps by 0.06 cm/s at a lumen
+    DOF over a step of 5e-10 s).  Their midpoint values, which is what d and X
+    integrate, are free of them, so the estimate sees the velocities' error
+    through their integrals.
+    """
+    out = {}
+    if state.wall is not None:
+        out["wall.d"] = state.wall.d
+    if "fluid.X" in state.extra:
+        out["fluid.X"] = state.extra["fluid.X"]
+    return out
+
+
+def integrate(state: State, new: State) -> State:
+    """``new`` with its fluid velocity integral X (0 at the start), by the trapezoidal rule over the step."""
+    u_new, u_old = getattr(new.fluid, "u", None), getattr(state.fluid, "u", None)
+    if u_new is None:
+        return new
+    before = state.extra.get("fluid.X")
+    before = np.zeros_like(u_old) if before is None else before
+    return attrs.evolve(new, extra={**new.extra, "fluid.X": before + (new.t - state.t) * 0.5 * (u_new + u_old)})
+
+
+class Adaptive:
+    """Steps chosen by error (module docstring)."""
+
+    def __init__(self, setup: Setup, scheme: TimeScheme, error_constant: float = 1.0):
+        time = setup.case.time
+        self.error_constant = error_constant
+        self.setup, self.scheme = setup, scheme
+        self.tol, self.end, self.first = time.tolerance, time.end, time.dt
+        self.lo, self.hi = time.smallest, time.dt_max if time.dt_max is not None else math.inf
+        self.interval = time.output_interval
+        self.controller = Controller(scheme.order)
+
+    def start(self) -> dict[str, float]:
+        """The controller's record before the first step."""
+        return {"dt": self.first, "err": 1.0, "last": 0.0, "accepted": 0, "rejected": 0, "smallest": 0.0,
+                "largest": 0.0, "refactorizations": 0, **{f"peak.{name}": 0.0 for name in FIELDS}}
+
+    def landing(self, t0: float) -> float:
+        """The next time a step must land on after ``t0``: a multiple of the output interval, or the end."""
+        if self.interval is None:
+            return self.end
+        k = math.floor(t0 / self.interval * (1.0 + 1e-12)) + 1
+        return min(self.end, k * self.interval)
+
+    def window(self, state: State, proposal: float) -> Window:
+        """The step from ``state`` of the proposed length, clipped to Δt_max and to land (no sliver)."""
+        t0 = state.t
+        dt = min(proposal, self.hi)
+        land = self.landing(t0)
+        if t0 + dt >= land - 1e-9 * dt:
+            dt, t1 = land - t0, land
+        else:
+            if t0 + 2.0 * dt > land:
+                dt = 0.5 * (land - t0)
+            t1 = t0 + dt
+        ratio = dt / (t0 - state.previous.t) if state.previous is not None else 1.0
+        return Window(state.n, t0, t1, dt, self.scheme.with_ratio(ratio))
+
+    def factorizations(self) -> int:
+        """Factorizations so far, every system of the run (the coupler's and the fluid's)."""
+        stats = [*self.setup.solvers.values(), *([self.setup.fluid.stats] if self.setup.fluid is not None else [])]
+        return sum(st.factorizations for st in stats)
+
+    def error(self, state: State, new: State, dt: float, record: dict[str, float]) -> float | None:
+        """err of the step ``state`` → ``new`` (≤ 1: accept); None before three old levels exist."""
+        old = state.history(3)
+        if old[-1].n != state.n - 2 or state.n < 2:
+            return None
+        if "fluid.X" in new.extra and "fluid.X" not in old[-1].extra:  # the start: X⁰ = 0
+            old[-1] = attrs.evolve(old[-1], extra={**old[-1].extra, "fluid.X": np.zeros_like(new.extra["fluid.X"])})
+        k = [dt, old[0].t - old[1].t, old[1].t - old[2].t]
+        levels = [fields(s) for s in old]
+        worst = 0.0
+        for name, x in fields(new).items():
+            e = float(np.max(np.abs(local_error(x, [lv[name] for lv in levels], k))))
+            scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
+            if scale > 0.0:
+                worst = max(worst, e / scale)
+        return self.error_constant * worst * new.t / (dt * self.tol)
+
+    @staticmethod
+    def size(x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
+        """A field's size at time t: max(|x|, t |x − x_before|/Δt) in the max norm.
+
+        The second term is how far the field's rate over the step moves it in the
+        time elapsed: early in a run, a small fast transient is measured against
+        it, not against the field's still tiny value.
+        """
+        return max(float(np.max(np.abs(x))), t * float(np.max(np.abs(x - before))) / dt)
+
+    def march(self, state: State, advance: Advance) -> Iterator[tuple[State, StepReport]]:
+        """The accepted steps from ``state`` to ``time.end`` (module docstring)."""
+        record = dict(state.extra.get("clock") or self.start())
+        while state.t < self.end * (1.0 - 1e-12):
+            window = self.window(state, record["dt"])
+            counted = self.factorizations()
+            new, report = advance(state, window)
+            new = integrate(state, new)
+            if record["last"] and window.dt != record["last"]:
+                record["refactorizations"] += self.factorizations() - counted
+            err = self.error(state, new, window.dt, record)
+            if err is not None and err > 1.0:
+                record["rejected"] += 1
+                proposal = window.dt * self.controller.rejected(err)
+                if proposal < self.lo:
+                    raise SchemeFailure(
+                        f"adaptive steps: at t = {state.t:.6g} s the error (err = {err:.3g} × time.tolerance) asks "
+                        f"for a step of {proposal:.3g} s < time.dt_min = {self.lo:.3g} s: loosen time.tolerance "
+                        f"or lower time.dt_min (every step before is kept)")
+                record["dt"] = proposal
+                continue
+            clipped = window.dt < min(record["dt"], self.hi)
+            factor = 1.0 if err is None else self.controller.accepted(err, record["err"])
+            proposal = max(window.dt * factor, record["dt"]) if clipped else window.dt * factor
+            if proposal < self.lo:  # the error asks for steps below dt_min from here on: no end of them
+                raise SchemeFailure(
+                    f"adaptive steps: after t = {new.t:.6g} s the error (err = {err:.3g} × time.tolerance) asks "
+                    f"for a step of {proposal:.3g} s < time.dt_min = {self.lo:.3g} s: loosen time.tolerance or "
+                    f"lower time.dt_min (every step up to t = {state.t:.6g} s is kept)")
+            record.update(dt=min(proposal, self.hi), err=record["err"] if err is None else err,
+                          last=window.dt, accepted=record["accepted"] + 1,
+                          smallest=min(record["smallest"] or window.dt, window.dt),
+                          largest=max(record["largest"], window.dt))
+            old_fields = fields(state)
+            for name, x in fields(new).items():
+                record[f"peak.{name}"] = max(record[f"peak.{name}"],
+                                             self.size(x, old_fields.get(name, 0.0 * x), new.t, window.dt))
+            landed = float(new.t == self.landing(state.t))
+            state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
+            yield state, attrs.evolve(report, diagnostics={
+                **report.diagnostics, "dt": window.dt, "error.local": 0.0 if err is None else err, "landed": landed})
+
+
+def summary(record: dict[str, float] | None, tolerance: float | None) -> dict[str, object]:
+    """The ``adaptive`` entry of ``summary.json`` from the last state's controller record (empty for fixed steps)."""
+    if tolerance is None or record is None:
+        return {}
+    return {"adaptive": {"tolerance": tolerance, "accepted": int(record["accepted"]),
+                         "rejected": int(record["rejected"]),
+                         "dt_range": [record["smallest"], record["largest"]],
+                         "factorizations_at_dt_changes": int(record["refactorizations"])}}

@@ -1,0 +1,82 @@
+"""Steps chosen by error: the Crank–Nicolson local error estimate and the step-size controller.
+
+The estimate (derivation in docs/theory.md, "Adaptive steps") compares the
+Crank–Nicolson value x^{n+1} with an explicit AB2-type predictor built from
+levels the run already has: the midpoint difference quotients
+Dⁿ = (xⁿ − xⁿ⁻¹)/kₙ₋₁ and Dⁿ⁻¹ = (xⁿ⁻¹ − xⁿ⁻²)/kₙ₋₂ stand at tⁿ⁻½ and tⁿ⁻³ᐟ²;
+extrapolated linearly to tⁿ⁺½ they give
+
+    x^p = xⁿ + kₙ (Dⁿ + (kₙ + kₙ₋₁)/(kₙ₋₁ + kₙ₋₂) (Dⁿ − Dⁿ⁻¹)),
+
+exact for quadratics (AB2 with midpoint slopes; it is the quadratic through
+xⁿ⁻², xⁿ⁻¹, xⁿ evaluated at tⁿ⁺¹).  Their errors are, to leading order,
+
+    x^{n+1} − x(tⁿ⁺¹) = kₙ³/12 x''',      x(tⁿ⁺¹) − x^p = kₙ(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)/6 x''',
+
+so the Crank–Nicolson local error is the computed difference scaled:
+
+    e = kₙ² / (kₙ² + 2(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)) · (x^{n+1} − x^p)     (1/13 for equal steps).
+
+No linear solve: the predictor is three old levels.
+
+>>> k = [0.1, 0.1, 0.1]
+>>> t = np.array([0.3, 0.2, 0.1, 0.0])
+>>> xs = [t[i] ** 3 / 6 for i in range(4)]          # x''' = 1
+>>> cn = xs[0] + k[0] ** 3 / 12                       # the CN value: exact + its local error
+>>> round(float(local_error(cn, xs[1:], k) / (k[0] ** 3 / 12)), 12)
+1.0
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import attrs
+import numpy as np
+
+#: the controller's exponents (Gustafsson's PI controller as in Hairer & Wanner, II §IV.2): the step
+#: factor is SAFETY · err^(−KI/q) · err_prev^(KP/q), q = 2 for an error per unit step of a second-order rule
+KI, KP = 0.7, 0.4
+SAFETY = 0.9
+#: bounds of the factor after an accepted step, and after a rejected one
+GROW, SHRINK, REJECT_MIN = 2.0, 0.2, 0.1
+#: an accepted step's factor in [1, KEEP) keeps Δt: its matrices stay those of the last step (factors reused)
+KEEP = 1.2
+
+
+def predictor(old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
+    """x^p at tⁿ⁺¹ from xⁿ, xⁿ⁻¹, xⁿ⁻² (``old``, newest first) and the steps kₙ, kₙ₋₁, kₙ₋₂ (``k``)."""
+    d_now = (old[0] - old[1]) / k[1]
+    d_before = (old[1] - old[2]) / k[2]
+    return old[0] + k[0] * (d_now + (k[0] + k[1]) / (k[1] + k[2]) * (d_now - d_before))
+
+
+def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
+    """The Crank–Nicolson local error of x^{n+1} = ``new`` (module docstring)."""
+    scale = k[0] ** 2 / (k[0] ** 2 + 2.0 * (k[0] + k[1]) * (k[0] + k[1] + k[2]))
+    return scale * (new - predictor(old, k))
+
+
+@attrs.frozen
+class Controller:
+    """Gustafsson's PI step-size controller on the normalized error err (accept when err ≤ 1).
+
+    >>> c = Controller()
+    >>> c.accepted(0.1, 1.0) > 1.0, c.accepted(1.0, 1.0) < 1.0, c.rejected(4.0) < 1.0
+    (True, True, True)
+    >>> c.accepted(0.7, 1.0)        # a factor in [1, KEEP): keep the step
+    1.0
+    """
+
+    order: int = 2
+
+    def accepted(self, err: float, err_prev: float) -> float:
+        """The next step over this one, after an accepted step of error ``err`` (the one before: ``err_prev``)."""
+        err, err_prev = max(err, 1e-10), max(err_prev, 1e-10)
+        factor = SAFETY * err ** (-KI / self.order) * err_prev ** (KP / self.order)
+        factor = min(GROW, max(SHRINK, factor))
+        return 1.0 if 1.0 <= factor < KEEP else factor
+
+    def rejected(self, err: float) -> float:
+        """The retried step over the rejected one (< 1)."""
+        return min(SAFETY, max(REJECT_MIN, SAFETY * err ** (-1.0 / self.order)))

@@ -1,0 +1,147 @@
+"""Adaptive steps (``[time] tolerance``): the ledger closes with changing Δt, rejected steps leave no trace,
+steps land on the output times, dt_min stops the run with its rows kept, and resume is bit-identical.
+
+Sizes: the quick-start pulse (Koiter shell on a thick band) on a coarse mesh (nz = 12, nr = 3), 4 ms.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from runs import assert_resume_is_bit_identical, run_cli
+
+from multilayer.coupling.clock import Adaptive
+from multilayer.numerics.stepsize import Controller, local_error, predictor
+
+SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
+MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
+SPLITTING = 'coupler={model="kinematic-splitting",scheme="crank-nicolson",beta=1}'
+#: the tolerance each coupler is tested at: the splitting's estimate carries its error constant (10), and
+#: below about 1e-2 its steps collapse at the start on the composite wall (docs/accuracy.md, "Adaptive steps")
+TOLERANCE = {MONOLITHIC: "1e-3", SPLITTING: "1e-2"}
+
+
+def test_the_predictor_is_exact_for_quadratics_and_the_estimate_for_cubics_on_uneven_steps():
+    """x = t² is predicted exactly; for x = t³/6 the scaled difference is the CN local error k³/12."""
+    k = [0.3, 0.1, 0.2]
+    t = np.array([0.6, 0.3, 0.2, 0.0])
+    assert math.isclose(float(predictor(list(t[1:] ** 2), k)), 0.36, rel_tol=1e-12)
+    xs = t ** 3 / 6
+    estimate = local_error(xs[0] + k[0] ** 3 / 12, list(xs[1:]), k)
+    assert math.isclose(float(estimate), k[0] ** 3 / 12, rel_tol=1e-12)
+
+
+def test_the_controller_grows_after_a_small_error_and_shrinks_after_a_large_one():
+    c = Controller()
+    assert c.accepted(1e-3, 1e-3) == 2.0 and c.accepted(1.0, 1.0) < 1.0 and c.rejected(100.0) == 0.1
+
+
+@pytest.mark.parametrize("coupler, tolerance", TOLERANCE.items())
+def test_adaptive_steps_close_the_ledger_and_report_their_steps(tmp_path, coupler, tolerance):
+    """Changing Δt: CN's identity holds step by step with that step's Δt, so the ledger closes to round-off
+    (measured ≤ 2e-12); every rejected try is dropped whole (the ledger would not close otherwise)."""
+    code, summary, rows = run_cli("pulse-koiter-thick", tmp_path / "a", *SMALL, coupler,
+                                  f"time.tolerance={tolerance}", "time.output_interval=1e-3")
+    assert code == 0 and summary["status"] == "ok", summary["reason"]
+    assert summary["energy"]["max_relative_residual"] < 1e-9
+    adaptive = summary["adaptive"]
+    assert adaptive["accepted"] == summary["steps"] == len(rows)
+    dts = np.array([float(r["dt"]) for r in rows])
+    t = np.array([float(r["t"]) for r in rows])
+    assert len(set(dts)) > 10 and adaptive["dt_range"] == [dts.min(), dts.max()]
+    assert np.allclose(np.cumsum(dts), t, rtol=1e-12, atol=0.0)
+    assert all(float(r["error.local"]) <= 1.0 for r in rows)
+    landed = [float(r["t"]) for r in rows if float(r["landed"])]
+    assert landed == pytest.approx([0.001, 0.002, 0.003, 0.004], rel=1e-12)
+    assert t[-1] == 0.004
+
+
+def test_a_step_below_dt_min_stops_the_run_and_keeps_its_rows(tmp_path):
+    code, summary, rows = run_cli("pulse-koiter-thick", tmp_path / "a", *SMALL, MONOLITHIC,
+                                  "time.tolerance=1e-8", "time.dt_min=5e-7")
+    assert code != 0 and summary["status"] == "failed"
+    assert "time.dt_min" in summary["reason"] and "every step before is kept" in summary["reason"]
+    assert len(rows) == summary["steps"] >= 2
+
+
+@pytest.mark.parametrize("coupler", [MONOLITHIC, SPLITTING], ids=["monolithic-cn", "splitting-cn-beta1"])
+def test_an_adaptive_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, coupler):
+    """The controller's record (proposal, last error, peaks, counts) is the state's ``extra['clock']``, so a
+    checkpoint carries it, and the wall's reusing solver's held factors (the splitting's) too; the error is per
+    unit of elapsed time (not of time.end), so a run to 2 ms
+    resumed to 4 ms takes the steps of a run to 4 ms."""
+    assert_resume_is_bit_identical(tmp_path, "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3", "time.dt=1e-6",
+                                   coupler, f"time.tolerance={TOLERANCE[coupler]}", "time.output_interval=1e-3",
+                                   every=10, half=0.002, end=0.004)
+
+
+def test_steps_land_on_the_output_times_without_a_sliver():
+    """Two equal steps instead of one step and a sliver before an output time."""
+
+    class Case:
+        class time:
+            tolerance, end, dt, smallest, dt_max, output_interval = 1e-3, 1.0, 0.1, 1e-9, None, 0.25
+
+    class Setup:
+        case = Case
+
+    class State:
+        t, n, previous = 0.2, 2, None
+
+    clock = Adaptive.__new__(Adaptive)
+    Adaptive.__init__(clock, Setup, __import__("multilayer.numerics.timescheme",
+                                               fromlist=["SCHEMES"]).SCHEMES["crank-nicolson"])
+    w = clock.window(State, 0.04)  # 0.24 would leave a sliver of 0.01 before 0.25: two halves instead
+    assert math.isclose(w.dt, 0.025) and math.isclose(w.t1, 0.225)
+    w = clock.window(State, 0.02)
+    assert math.isclose(w.t1, 0.22)
+    w = clock.window(State, 0.06)  # beyond the output time: clipped onto it
+    assert w.t1 == 0.25
+
+
+def test_a_study_puts_adaptive_and_fixed_runs_on_one_front(tmp_path):
+    """``--vary time.tolerance=none,...``: fixed-Δt runs (none) and adaptive ones against one reference; the
+    adaptive ones get a calibration table (error / tolerance) and ``tolerance.png``, all are on the front."""
+    import json
+
+    from runs import CASES
+
+    from multilayer.commands.main import main
+
+    out = tmp_path / "study"
+    code = main(["study", str(CASES / "pulse-koiter-thick.toml"), "--out", str(out),
+                 "--couplers", '{model="monolithic",scheme="crank-nicolson"}',
+                 "--set", "mesh.nz=12", "--set", "mesh.nr=3", "--set", "time.end=0.002",
+                 "--vary", "time.tolerance=none,1e-2,1e-3", "--set", "time.dt=1e-5",
+                 "--reference-set", "time.dt=2.5e-6", "--probes", "eta_z1"])
+    assert code == 0
+    data = json.loads((out / "study.json").read_text())
+    rows = {r["label"]: r for r in data["runs"]}
+    assert sorted(r["tolerance"] for r in rows.values() if r["tolerance"]) == [1e-3, 1e-2]
+    assert [a["tolerance"] for a in data["adaptive"]] == [1e-2, 1e-3]
+    assert all(a["error"] is not None and a["ratio"] == a["error"] / a["tolerance"] for a in data["adaptive"])
+    assert set(data["pareto"]) <= set(rows) and "## Adaptive steps" in (out / "study.md").read_text()
+
+
+#: the light wall's tolerances: the splitting's 1e-2 takes 25 000 steps there (docs/accuracy.md), 1e-1 a few thousand
+LIGHT = {MONOLITHIC: "1e-3", SPLITTING: "1e-1"}
+
+
+@pytest.mark.parametrize("coupler", [MONOLITHIC, SPLITTING], ids=["monolithic-cn", "splitting-cn-beta1"])
+def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler):
+    """ρ₁h/(ρ_f R) = 1e-3 (the light-wall scene of tests/test_coupled.py), adaptive steps capped at
+    dt_max = 1e-4 over 0.2 s, so at least 2000 accepted steps: energy ≤ initial (0, from rest) + work at
+    every step, the ledger closed at every step (measured: monolithic at tol 1e-3, 3 262 steps, max
+    (E − W)/max|W| = −6e-25, residual ≤ 1.1e-12)."""
+    code, summary, rows = run_cli(
+        "pulse-koiter", tmp_path / "light",
+        'layers[0]={ model = "koiter-shell", density = 1.0, thickness = 0.0005, young = 7.5e7, poisson = 0.49 }',
+        "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.2", "time.dt=1e-6", "time.dt_max=1e-4",
+        f"time.tolerance={LIGHT[coupler]}", "output.probes=[{ name = \"eta_z1\", quantity = \"eta\", z = 1.0 }]",
+        coupler)
+    assert code == 0 and summary["status"] == "ok", summary["reason"]
+    assert summary["adaptive"]["accepted"] == len(rows) >= 2000
+    energy = np.array([float(r["energy.total"]) for r in rows])
+    work = np.cumsum([sum(float(v) for k, v in r.items() if k.startswith("work.")) for r in rows])
+    assert np.all(energy <= work + 1e-9 * np.max(np.abs(work)))
+    assert max(float(r["energy.relative_residual"]) for r in rows) <= 1e-9

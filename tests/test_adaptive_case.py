@@ -1,0 +1,42 @@
+"""``[time] tolerance``, ``dt_min``, ``dt_max``, ``output_interval``: read, bounded, refused with key paths."""
+
+import pytest
+from runs import CASES
+
+from multilayer.case.casefile import load_case
+from multilayer.plugin.problems import CaseError
+
+CN_SPLIT = 'coupler={model="kinematic-splitting",scheme="crank-nicolson",beta=1}'
+
+
+def problems(*sets: str) -> list[str]:
+    with pytest.raises(CaseError) as info:
+        load_case(CASES / "pulse-koiter-thick.toml", sets)
+    return [str(p) for p in info.value.problems]
+
+
+@pytest.mark.parametrize("sets, path, words", [
+    (("time.tolerance=0",), "time.tolerance", "> 0.0"),
+    (("time.tolerance=-1e-3",), "time.tolerance", "> 0.0"),
+    (("time.tolerance=1e-3", "time.dt_min=1e-3", "time.dt_max=1e-4"), "time.dt_min", "at most time.dt_max"),
+    (("time.tolerance=1e-3", "time.dt_min=1e-3"), "time.dt", "at least time.dt_min"),
+    (("time.tolerance=1e-3", "time.dt_max=1e-5"), "time.dt", "at most time.dt_max"),
+    (("time.dt_min=1e-5",), "time.dt_min", "read only with adaptive steps"),
+    (("time.output_interval=1e-3",), "time.output_interval", "read only with adaptive steps"),
+    (("time.tolerance=1e-3", "time.dt_min=1e-12"), "time.dt_min", "expected at most"),
+])
+def test_bad_adaptive_time_keys_are_refused_with_their_key_path(sets, path, words):
+    found = problems(CN_SPLIT, *sets)
+    assert any(p.startswith(path) and words in p for p in found), found
+
+
+@pytest.mark.parametrize("coupler", ['{model="kinematic-splitting"}', '{model="monolithic",scheme="backward-euler"}',
+                                     '{model="monolithic",scheme="bdf2"}', '{model="dirichlet-neumann-implicit"}'])
+def test_a_coupler_without_an_error_estimate_refuses_a_tolerance(coupler):
+    found = problems(f"coupler={coupler}", "time.tolerance=1e-3")
+    assert any("time.tolerance = 0.001 asks for adaptive steps" in p for p in found), found
+
+
+def test_unset_adaptive_keys_leave_the_resolved_case_and_its_hash_alone():
+    case = load_case(CASES / "pulse-koiter-thick.toml")
+    assert set(case.resolved["time"]) == {"end", "dt"} and not case.time.adaptive
