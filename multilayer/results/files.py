@@ -154,7 +154,8 @@ class SeriesWriter:
     def undo(self) -> None:
         """Cut the last row appended off again (its partner file could not take its row)."""
         if self._before_last is not None:
-            os.truncate(self.path, self._before_last)
+            with open_nofollow(self.path, os.O_WRONLY, "ab", buffering=0) as f:
+                os.ftruncate(f.fileno(), self._before_last)
             self._before_last = None
 
 
