@@ -13,9 +13,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import textwrap
 
 import pytest
+from test_casefile import BASE as CASEFILE_BASE
 
 import multilayer.plugin.registry
 from multilayer.case.contracts import COUPLER_METHODS
@@ -26,48 +26,10 @@ from multilayer.coupling.contract import Coupler
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 
-BASE = textwrap.dedent(
-    """\
-    title = "wall"
-
-    [geometry]
-    length = 6.0
-    radius = 0.5
-
-    [mesh]
-    nz = 6
-    nr = 2
-    order = 2
-
-    [time]
-    end = 0.001
-    dt = 1e-4
-
-    [[layers]]
-    model = "koiter-shell"
-    density = 1.1
-    thickness = 0.02
-    young = 7.5e5
-    poisson = 0.45
-
-    [[layers]]
-    model = "linear-elastic"
-    density = 1.2
-    thickness = 0.1
-    young = 9e5
-    poisson = 0.4
-    cells = 2
-
-    [loads]
-    interface = { kind = "table", file = "p.csv" }
-
-    [initial]
-    displacement = { r = "0.001*sin(pi*z/L)" }
-
-    [output]
-    probes = [ { name = "eta_mid", quantity = "eta", z = 3.0 } ]
-    """
-)
+#: test_casefile's valid case, its interface load a table (the file and table inputs are what is tested here)
+BASE = CASEFILE_BASE.replace('interface = { kind = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }',
+                             'interface = { kind = "table", file = "p.csv" }')
+assert 'file = "p.csv"' in BASE
 TABLE = "t,p\n0,0\n0.0005,100\n0.001,0\n"
 
 
