@@ -56,6 +56,10 @@ def arrival(t: np.ndarray, y: np.ndarray) -> dict[str, Any]:
             "peaked": i_peak < len(a) - 1}
 
 
+#: an η probe's peak counts as the pulse's arrival when it is at least this fraction of the largest η probe's peak
+ARRIVED = 0.01
+
+
 def wave_speed(z: Sequence[float], times: Sequence[float | None]) -> float | None:
     """Least-squares slope of z against arrival time (cm/s); None below two distinct times.
 
@@ -139,8 +143,11 @@ def measure(run: RunData, reference: RunData | None, registry: Registry) -> dict
                 entry["max_abs_diff"] = None if other is None else max_abs_difference(
                     run.t, series[p["name"]], reference.t, reference.series[p["name"]])
         probes[p["name"]] = entry
-    # the speed is fitted to the arrivals the series has seen whole
-    lumen = {n: e for n, e in probes.items() if e["quantity"] == "eta" and not e["line"] and e["peaked"]}
+    # the speed is fitted to the arrivals the series has seen whole, of the pulse itself: a probe it has not
+    # reached yet shows only the precursor decaying ahead of it (orders of magnitude smaller), whose peak is no arrival
+    lumen = {n: e for n, e in probes.items() if e["quantity"] == "eta" and not e["line"] and e["peak"] is not None}
+    largest = max((e["peak"] for e in lumen.values()), default=0.0)
+    lumen = {n: e for n, e in lumen.items() if e["peaked"] and e["peak"] >= ARRIVED * largest}
     pressures = [(float(np.nanmax(series[n])), n) for n, e in probes.items()
                  if e["quantity"] == "p" and np.isfinite(series[n]).any()]
     peak_pressure, peak_pressure_probe = max(pressures) if pressures else (None, None)
