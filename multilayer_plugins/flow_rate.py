@@ -65,6 +65,9 @@ class FlowRate(BoundaryCondition):
         """The multiplier λ of the step (``traction.pressure`` once solved): the end's mean pressure."""
         return traction.pressure
 
+    def histories(self) -> tuple[PressureLoad, ...]:
+        return (self.flow,)
+
     def resolved(self) -> dict[str, Any]:
         return {"kind": "flow-rate", "flow": self.flow.to_dict()}
 

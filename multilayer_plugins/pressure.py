@@ -55,6 +55,9 @@ class PressureEnd(BoundaryCondition):
     def at_rest(self) -> bool:
         return is_zero(self.load)
 
+    def histories(self) -> tuple[PressureLoad, ...]:
+        return (self.load,)
+
     def resolved(self) -> dict[str, Any]:
         return self.load.to_dict()
 

@@ -5,13 +5,18 @@ Sizes: the quick-start pulse (Koiter shell on a thick band) on a coarse mesh (nz
 """
 
 import math
+from types import SimpleNamespace
 
+import attrs
 import numpy as np
 import pytest
 from runs import assert_resume_is_bit_identical, run_cli
 
+from multilayer.case.model import TimeSpec
 from multilayer.coupling.clock import Adaptive
+from multilayer.functions.loads import CosinePulse, SinePressure, TablePressure
 from multilayer.numerics.stepsize import Controller, local_error, predictor
+from multilayer.numerics.timescheme import SCHEMES
 
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
@@ -78,25 +83,23 @@ def test_an_adaptive_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, 
 def test_steps_land_on_the_output_times_without_a_sliver():
     """Two equal steps instead of one step and a sliver before an output time."""
 
-    class Case:
-        class time:
-            tolerance, end, dt, smallest, dt_max, output_interval = 1e-3, 1.0, 0.1, 1e-9, None, 0.25
-
-    class Setup:
-        case = Case
+    clock = clock_for(TimeSpec(end=1.0, dt=0.1, tolerance=1e-3, dt_min=1e-9, output_interval=0.25))
 
     class State:
         t, n, previous = 0.2, 2, None
 
-    clock = Adaptive.__new__(Adaptive)
-    Adaptive.__init__(clock, Setup, __import__("multilayer.numerics.timescheme",
-                                               fromlist=["SCHEMES"]).SCHEMES["crank-nicolson"])
     w = clock.window(State, 0.04)  # 0.24 would leave a sliver of 0.01 before 0.25: two halves instead
     assert math.isclose(w.dt, 0.025) and math.isclose(w.t1, 0.225)
     w = clock.window(State, 0.02)
     assert math.isclose(w.t1, 0.22)
     w = clock.window(State, 0.06)  # beyond the output time: clipped onto it
     assert w.t1 == 0.25
+
+
+def clock_for(time, *loads):
+    """The adaptive clock of a case with ``time`` whose only loads are ``loads`` (a Crank–Nicolson scheme)."""
+    setup = SimpleNamespace(case=SimpleNamespace(time=time, loads=SimpleNamespace(histories=lambda: loads)))
+    return Adaptive(setup, SCHEMES["crank-nicolson"])
 
 
 def test_a_study_puts_adaptive_and_fixed_runs_on_one_front(tmp_path):
@@ -146,3 +149,44 @@ def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler):
     work = np.cumsum([sum(float(v) for k, v in r.items() if k.startswith("work.")) for r in rows])
     assert np.all(energy <= work + 1e-9 * np.max(np.abs(work)))
     assert max(float(r["energy.relative_residual"]) for r in rows) <= 1e-9
+
+
+def test_the_error_per_unit_time_is_measured_over_the_memory_time():
+    """W is time.memory, else the loads' shortest period, else time.end; a field's size counts its rate over
+    min(t, W), and the normalized error of a step is e · min(t, W) / (Δt · tol)."""
+    time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-2)
+    assert clock_for(time).memory == 1.0
+    assert clock_for(time, SinePressure(1.0, 4.0), SinePressure(1.0, 10.0)).memory == 0.1
+    clock = clock_for(attrs.evolve(time, memory=0.25), SinePressure(1.0, 10.0))
+    assert clock.memory == 0.25
+    x, before = np.array([1.0, -3.0]), np.array([1.0, -2.0])
+    assert clock.size(x, before, 0.1, 0.01) == 10.0  # t < W: t |Δx|/Δt
+    assert clock.size(x, before, 2.0, 0.01) == 25.0  # t > W: W |Δx|/Δt
+
+
+def test_steps_land_on_a_tables_rows_and_a_pulses_end():
+    """A linear table's slope jumps at every row, a cosine pulse's curvature at its end: a step stops there."""
+    time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-2)
+    table = TablePressure(np.array([0.0, 0.1, 0.3]), np.array([1.0, 2.0, 0.0]), period=0.4)
+    clock = clock_for(time, table, CosinePulse(1.0, 0.55))
+
+    class State:
+        t, n, previous = 0.42, 5, None
+
+    assert clock.landing(0.42) == pytest.approx(0.5) and clock.window(State, 0.2).t1 == clock.landing(0.42)
+    assert clock.landing(0.5) == pytest.approx(0.55)  # the pulse's end comes before the next row (0.7)
+    assert clock.landing(0.55) == pytest.approx(0.7)
+    assert clock.window(State, 0.05).t1 == pytest.approx(0.46)  # 0.47 would leave a sliver: two halves
+
+
+def test_an_adaptive_run_on_a_periodic_table_lands_on_every_row(tmp_path):
+    """The physiological waveform (a table every 1e-4 s, linear): no step straddles a row, and the rows marked
+    ``landed`` are the output times only (the end here)."""
+    code, summary, rows = run_cli("physiological-waveform", tmp_path / "a", "mesh.nz=12", "mesh.nr=3",
+                                  "time.end=0.002", MONOLITHIC, "time.tolerance=1e-2", "time.dt=1e-5")
+    assert code == 0 and summary["status"] == "ok", summary["reason"]
+    assert summary["adaptive"]["memory"] == 0.02  # the table's period
+    t = np.array([float(r["t"]) for r in rows])
+    gaps = np.abs(t[None, :] - 1e-4 * np.arange(1, 21)[:, None]).min(axis=1)
+    assert gaps.max() < 1e-15 and len(t) > 20
+    assert [float(r["t"]) for r in rows if float(r["landed"])] == [0.002]

@@ -1,4 +1,4 @@
-"""``[time] tolerance``, ``dt_min``, ``dt_max``, ``output_interval``: read, bounded, refused with key paths."""
+"""``[time] tolerance``, ``dt_min``, ``dt_max``, ``output_interval``, ``memory``: read, bounded, refused with key paths."""
 
 import pytest
 from runs import CASES
@@ -24,6 +24,9 @@ def problems(*sets: str) -> list[str]:
     (("time.dt_min=1e-5",), "time.dt_min", "read only with adaptive steps"),
     (("time.output_interval=1e-3",), "time.output_interval", "read only with adaptive steps"),
     (("time.tolerance=1e-3", "time.dt_min=1e-12"), "time.dt_min", "expected at most"),
+    (("time.tolerance=1e-3", "time.memory=0"), "time.memory", "> 0.0"),
+    (("time.tolerance=1e-3", "time.memory=-0.02"), "time.memory", "> 0.0"),
+    (("time.memory=0.02",), "time.memory", "read only with adaptive steps"),
 ])
 def test_bad_adaptive_time_keys_are_refused_with_their_key_path(sets, path, words):
     found = problems(CN_SPLIT, *sets)

@@ -174,6 +174,12 @@ class BoundaryCondition(ABC):
         loads accepts it."""
         return False
 
+    def histories(self) -> tuple[Any, ...]:
+        """The functions of t the end prescribes (:class:`multilayer.functions.loads.PressureLoad` each: a
+        pressure, a flow rate); none by default.  Adaptive steps land on their breakpoints and take their
+        shortest period as the memory time (``time.memory``)."""
+        return ()
+
     def resolved(self) -> dict[str, Any] | None:
         """The condition as case-file data with defaults filled, when it is more than its kind and
         parameters (e.g. a table's SHA-256); None: its kind and parameters say it all."""

@@ -56,7 +56,7 @@ TARGETS = (0.05, 0.01)
 BASELINE = "kinematic-splitting"
 #: key paths a compared run may differ in from the reference (the reference may stop earlier: ``time.end``)
 #: the keys of adaptive steps: a run with ``time.tolerance`` is compared by its tolerance, not by Δt
-ADAPTIVE = ("tolerance", "dt_min", "dt_max", "output_interval")
+ADAPTIVE = ("tolerance", "dt_min", "dt_max", "output_interval", "memory")
 FREE_KEYS = ("title", "coupler", "time.dt", "time.end", "mesh", "output.every", *(f"time.{k}" for k in ADAPTIVE))
 #: key paths in which the runs of the reference's own Δt sequence differ from it (Richardson)
 SIBLING_KEYS = ("title", "time.dt", "output.every")

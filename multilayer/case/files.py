@@ -7,7 +7,7 @@ a directory, a file of gigabytes, or TOML nested thousands of levels deep
 here with a sentence, before it is parsed:
 
 * :func:`read_case` reads and parses a case file within these bounds;
-* :func:`~multilayer.functions.loads.read_bounded` (the tables' reader, below
+* :func:`~multilayer.functions.tablefile.read_bounded` (the tables' reader, below
   this package) opens without blocking, checks that the path is a regular
   file no larger than the cap, and reads at most the cap;
 * :func:`toml_depth` scans TOML text for its deepest nesting of arrays and
@@ -24,7 +24,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from multilayer.functions.loads import (
+from multilayer.functions.tablefile import (
     MAX_TABLE_BYTES,
     FileRefused,
     read_bounded,

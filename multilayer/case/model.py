@@ -6,7 +6,7 @@ into a :class:`Case`; nothing downstream reads raw TOML.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import attrs
@@ -45,6 +45,7 @@ class TimeSpec:
     dt_min: float | None = None  #: adaptive steps: the smallest step (s; None: dt × :data:`DT_MIN_FRACTION`)
     dt_max: float | None = None  #: adaptive steps: the largest step (s; None: no bound)
     output_interval: float | None = None  #: adaptive steps land on its multiples (s)
+    memory: float | None = None  #: adaptive steps: the memory time W (s; None: the loads' shortest period, or end)
 
     @property
     def adaptive(self) -> bool:
@@ -59,6 +60,21 @@ class TimeSpec:
     @property
     def steps(self) -> int:
         return int(round(self.end / self.dt))
+
+    def memory_time(self, loads: Sequence[PressureLoad]) -> float:
+        """W (s): ``memory`` when set, else the shortest period of the ``loads``, else ``end``.
+
+        >>> from multilayer.functions.loads import ConstantPressure, SinePressure
+        >>> time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-3)
+        >>> time.memory_time([ConstantPressure(1.0)]), time.memory_time([SinePressure(1.0, 4.0), SinePressure(1.0, 5.0)])
+        (1.0, 0.2)
+        >>> attrs.evolve(time, memory=0.5).memory_time([SinePressure(1.0, 5.0)])
+        0.5
+        """
+        if self.memory is not None:
+            return self.memory
+        periods = [p for p in (load.cycle() for load in loads) if p is not None]
+        return min(periods, default=self.end)
 
 
 @attrs.frozen
@@ -83,6 +99,10 @@ class Loads:
     external: PressureLoad  #: P_e on the outer surface of the wall
     interface: PressureLoad  #: pressure on the lumen line when there is no fluid
     wall_motion: Formula | None = None  #: prescribed η(t, z) for a fluid with a moving rigid wall
+
+    def histories(self) -> tuple[PressureLoad, ...]:
+        """Every load the case prescribes as a function of t: the ends' (pressures, flow rates) and the wall's."""
+        return (*self.inlet.histories(), *self.outlet.histories(), self.external, self.interface)
 
 
 @attrs.frozen

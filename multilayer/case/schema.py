@@ -43,9 +43,12 @@ TIME = (
     Param("dt_max", "", "s", default=None, gt=0.0, doc="adaptive steps: the largest step"),
     Param("output_interval", "", "s", default=None, gt=0.0,
           doc="adaptive steps: a step lands on every multiple of it (snapshots are written there)"),
+    Param("memory", "W", "s", default=None, gt=0.0,
+          doc="adaptive steps: the error per unit time is measured over min(t, W); unset: the loads' shortest "
+              "period, or time.end when no load repeats"),
 )
 #: the keys of [time] that only adaptive steps (time.tolerance) read
-ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval")
+ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory")
 
 
 #: radial cells of a thick layer: a core key, not a plugin parameter (its upper bound: the memory check)

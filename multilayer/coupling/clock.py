@@ -14,16 +14,21 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
   the largest of them is the step's relative error e, times the coupler's
   error constant (its error over Crank–Nicolson's: 10 for the splitting);
-* e is asked per unit of elapsed time: err = e · tⁿ⁺¹ / (kₙ · tol) ≤ 1, so a
-  step may add tol·kₙ/tⁿ⁺¹ of the field's size and the run's errors add up to
-  about tol — the run's relative error, not one step's — whatever ``time.end`` is;
+* e is asked per unit of elapsed time, over at most the memory time W
+  (``time.memory``; by default the loads' shortest period, or ``time.end``
+  when no load repeats): err = e · min(tⁿ⁺¹, W) / (kₙ · tol) ≤ 1, so a step
+  may add tol·kₙ/min(tⁿ⁺¹, W) of the field's size and the errors of any span
+  W add up to about tol — on a periodic run the allowed local error stops
+  shrinking after one period; without a period it is the run's relative error;
 * Gustafsson's PI controller (:class:`~multilayer.numerics.stepsize.Controller`)
   proposes the next step; a step with err > 1 is rejected and retried
   smaller; one that would go below ``time.dt_min`` stops the run
   (:class:`SchemeFailure`, every row so far kept);
 * the first two steps are ``time.dt`` (the estimate needs three old levels);
-* steps are clipped to land on ``time.end`` and on every multiple of
-  ``time.output_interval`` (two equal steps instead of a sliver);
+* steps are clipped to land on ``time.end``, on every multiple of
+  ``time.output_interval`` and on the loads' breakpoints (a linear table's
+  rows, a pulse's end: :meth:`~multilayer.functions.loads.PressureLoad.next_breakpoint`),
+  so no step straddles a kink of a load (two equal steps instead of a sliver);
 * everything the controller carries (its proposal, its last error, the
   peaks, the counts) is the state's ``extra["clock"]``: a checkpoint keeps
   it, so a resumed run takes the same steps.
@@ -37,6 +42,7 @@ from collections.abc import Callable, Iterator
 import attrs
 import numpy as np
 
+from multilayer.case.model import Case
 from multilayer.coupling.contract import SchemeFailure, StepReport
 from multilayer.numerics.stepsize import Controller, local_error
 from multilayer.numerics.timescheme import TimeScheme
@@ -117,6 +123,8 @@ class Adaptive:
         self.tol, self.end, self.first = time.tolerance, time.end, time.dt
         self.lo, self.hi = time.smallest, time.dt_max if time.dt_max is not None else math.inf
         self.interval = time.output_interval
+        self.loads = setup.case.loads.histories()
+        self.memory = time.memory_time(self.loads)
         self.controller = Controller(scheme.order)
 
     def start(self) -> dict[str, float]:
@@ -124,12 +132,16 @@ class Adaptive:
         return {"dt": self.first, "err": 1.0, "last": 0.0, "accepted": 0, "rejected": 0, "smallest": 0.0,
                 "largest": 0.0, "refactorizations": 0, **{f"peak.{name}": 0.0 for name in FIELDS}}
 
-    def landing(self, t0: float) -> float:
-        """The next time a step must land on after ``t0``: a multiple of the output interval, or the end."""
+    def output_time(self, t0: float) -> float:
+        """The next output time after ``t0``: a multiple of the output interval, or the end."""
         if self.interval is None:
             return self.end
         k = math.floor(t0 / self.interval * (1.0 + 1e-12)) + 1
         return min(self.end, k * self.interval)
+
+    def landing(self, t0: float) -> float:
+        """The next time a step must land on after ``t0``: an output time or a load's breakpoint."""
+        return min([self.output_time(t0), *(load.next_breakpoint(t0) for load in self.loads)])
 
     def window(self, state: State, proposal: float) -> Window:
         """The step from ``state`` of the proposed length, clipped to Δt_max and to land (no sliver)."""
@@ -165,17 +177,17 @@ class Adaptive:
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
             if scale > 0.0:
                 worst = max(worst, e / scale)
-        return self.error_constant * worst * new.t / (dt * self.tol)
+        return self.error_constant * worst * min(new.t, self.memory) / (dt * self.tol)
 
-    @staticmethod
-    def size(x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
-        """A field's size at time t: max(|x|, t |x − x_before|/Δt) in the max norm.
+    def size(self, x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
+        """A field's size at time t: max(|x|, min(t, W) |x − x_before|/Δt) in the max norm.
 
         The second term is how far the field's rate over the step moves it in the
-        time elapsed: early in a run, a small fast transient is measured against
-        it, not against the field's still tiny value.
+        time elapsed, or in the memory time W once more has elapsed: early in a run,
+        a small fast transient is measured against it, not against the field's
+        still tiny value.
         """
-        return max(float(np.max(np.abs(x))), t * float(np.max(np.abs(x - before))) / dt)
+        return max(float(np.max(np.abs(x))), min(t, self.memory) * float(np.max(np.abs(x - before))) / dt)
 
     def march(self, state: State, advance: Advance) -> Iterator[tuple[State, StepReport]]:
         """The accepted steps from ``state`` to ``time.end`` (module docstring)."""
@@ -214,17 +226,19 @@ class Adaptive:
             for name, x in fields(new).items():
                 record[f"peak.{name}"] = max(record[f"peak.{name}"],
                                              self.size(x, old_fields.get(name, 0.0 * x), new.t, window.dt))
-            landed = float(new.t == self.landing(state.t))
+            landed = float(new.t == self.output_time(state.t))
             state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
             yield state, attrs.evolve(report, diagnostics={
                 **report.diagnostics, "dt": window.dt, "error.local": 0.0 if err is None else err, "landed": landed})
 
 
-def summary(record: dict[str, float] | None, tolerance: float | None) -> dict[str, object]:
+def summary(record: dict[str, float] | None, case: Case) -> dict[str, object]:
     """The ``adaptive`` entry of ``summary.json`` from the last state's controller record (empty for fixed steps)."""
-    if tolerance is None or record is None:
+    time = case.time
+    if time.tolerance is None or record is None:
         return {}
-    return {"adaptive": {"tolerance": tolerance, "accepted": int(record["accepted"]),
+    return {"adaptive": {"tolerance": time.tolerance, "memory": time.memory_time(case.loads.histories()),
+                         "accepted": int(record["accepted"]),
                          "rejected": int(record["rejected"]),
                          "dt_range": [record["smallest"], record["largest"]],
                          "factorizations_at_dt_changes": int(record["refactorizations"])}}

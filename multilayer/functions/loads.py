@@ -16,10 +16,7 @@ the caller names its unit, in which the messages speak.
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import stat
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -27,8 +24,10 @@ from typing import Any, ClassVar
 
 import attrs
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from multilayer.functions.formula import Formula, FormulaError
+from multilayer.functions.tablefile import MAX_TABLE_TIME, FileRefused, read_csv
 from multilayer.plugin.problems import (
     MISSING,
     CaseError,
@@ -92,6 +91,14 @@ class PressureLoad(ABC):
     def to_dict(self) -> dict[str, Any]:
         """The load as case-file data (JSON-able, defaults filled)."""
 
+    def cycle(self) -> float | None:
+        """The period (s) with which P repeats; None when it does not."""
+        return None
+
+    def next_breakpoint(self, t: float) -> float:
+        """The first time after ``t`` where P or its slope jumps (math.inf: none); adaptive steps land on it."""
+        return math.inf
+
 
 @attrs.frozen
 class ConstantPressure(PressureLoad):
@@ -147,6 +154,15 @@ class CosinePulse(PressureLoad):
     def to_dict(self) -> dict[str, Any]:
         return {"kind": self.kind, "amplitude": self.amplitude, "duration": self.duration}
 
+    def next_breakpoint(self, t: float) -> float:
+        """The pulse's start and end (its second derivative jumps there).
+
+        >>> p = CosinePulse(amplitude=1.0, duration=0.003)
+        >>> p.next_breakpoint(-1.0), p.next_breakpoint(0.0), p.next_breakpoint(0.003)
+        (0.0, 0.003, inf)
+        """
+        return next_after(t, (0.0, self.duration))
+
 
 @attrs.frozen
 class SinePressure(PressureLoad):
@@ -176,150 +192,37 @@ class SinePressure(PressureLoad):
         return {"kind": self.kind, "amplitude": self.amplitude, "frequency": self.frequency,
                 "mean": self.mean, "phase": self.phase}
 
-
-#: The largest table file read (bytes): 10 MB is some 400 000 rows ``t, p``.
-MAX_TABLE_BYTES = 10_000_000
-
-
-class FileRefused(ValueError):
-    """A file that is not read: the message says why, in the user's words."""
+    def cycle(self) -> float:
+        return 1.0 / self.frequency
 
 
-def _kind(mode: int) -> str:
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
-
-
-def size_text(n: float) -> str:
-    """A byte count for a message.
-
-    >>> size_text(1_000_000), size_text(10_000_000), size_text(2500)
-    ('1 MB', '10 MB', '2.5 kB')
-    """
-    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if n >= scale:
-            return f"{n / scale:.3g} {unit}"
-    return f"{n:.0f} bytes"
-
-
-def read_bounded(path: Path | str, limit: int, what: str = "file") -> bytes:
-    """The bytes of ``path``, a regular file of at most ``limit`` bytes.
-
-    Raises
-    ------
-    FileNotFoundError
-        When there is no such file.
-    FileRefused
-        When it is a directory, a FIFO, a device or a socket, or larger
-        than ``limit`` (the message names which and says it is the ``what``).
-    OSError
-        When it cannot be read otherwise (permissions).
-    """
-    path = Path(path)
-    mode = os.stat(path).st_mode  # FileNotFoundError: the caller's message
-    if not stat.S_ISREG(mode):
-        raise FileRefused(f"{_kind(mode)}, not a regular file; expected a {what}")
-    # no blocking: a file swapped for a FIFO after the stat must not hang the open
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
-    with os.fdopen(fd, "rb") as handle:
-        info = os.fstat(handle.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise FileRefused(f"{_kind(info.st_mode)}, not a regular file; expected a {what}")
-        if info.st_size > limit:
-            raise FileRefused(f"{size_text(info.st_size)}; expected a {what} of at most {size_text(limit)}")
-        data = handle.read(limit + 1)
-    if len(data) > limit:  # it grew while read
-        raise FileRefused(f"more than {size_text(limit)}; expected a {what} of at most {size_text(limit)}")
-    return data
-
-
-#: Times of a table beyond ±this (s) are a mistake (a unit, a typo), not a waveform; so is a longer period.
-MAX_TABLE_TIME = 1e9
-
-
-def read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a two-column CSV ``t, p`` (an optional header line, ``#`` comments).
-
-    The file must be a regular file of at most :data:`~multilayer.case.files.MAX_TABLE_BYTES`
-    (a FIFO, a device, a directory are refused before they are read).
-
-    Raises ValueError naming the line of a bad row (:class:`~multilayer.case.files.FileRefused`
-    for a file that is not read; FileNotFoundError, OSError).
-    """
-    return _read_csv(path)[:2]
-
-
-def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, str]:
-    """(times, values, SHA-256 of the bytes) of a table file, read once and with bounds."""
-    raw = read_bounded(path, MAX_TABLE_BYTES, "table file")
-    return (*parse_table(raw.decode("utf-8")), hashlib.sha256(raw).hexdigest())
-
-
-def parse_table(text: str) -> tuple[np.ndarray, np.ndarray]:
-    """The rows ``t, p`` of a table's text; ValueError naming the line of a bad row.
-
-    >>> parse_table("t,p\\n0,1\\n1e308,2\\n")
-    Traceback (most recent call last):
-    ...
-    ValueError: line 3: the time 1e+308 s is outside [-1e+09, 1e+09] s
-    """
-    rows: list[tuple[float, float]] = []
-    lines: list[int] = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        body = line.split("#", 1)[0].strip()
-        if not body:
-            continue
-        fields = [f.strip() for f in (body.split(",") if "," in body else body.split())]
-        try:
-            t, p = (float(f) for f in fields)
-        except ValueError:
-            if not rows and not any(_is_number(f) for f in fields):
-                continue  # the header line
-            raise ValueError(f"line {number}: expected two numbers 't, p', got {line.strip()!r}") from None
-        if not (math.isfinite(t) and math.isfinite(p)):
-            raise ValueError(f"line {number}: every t and p must be a finite number, got {line.strip()!r}")
-        if abs(t) > MAX_TABLE_TIME:
-            raise ValueError(f"line {number}: the time {t:g} s is outside [{-MAX_TABLE_TIME:g}, {MAX_TABLE_TIME:g}] s")
-        rows.append((t, p))
-        lines.append(number)
-    if len(rows) < 2:
-        raise ValueError("expected at least two rows 't, p'")
-    data = np.array(rows)
-    steps = np.diff(data[:, 0])
-    if np.any(steps <= 0):
-        i = int(np.argmax(steps <= 0))
-        raise ValueError(f"line {lines[i + 1]}: the times t must increase strictly from row to row "
-                         f"({data[i + 1, 0]:g} s after {data[i, 0]:g} s)")
-    return data[:, 0], data[:, 1]
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+#: how a table load runs between its rows
+INTERPOLATIONS = ("linear", "cubic")
 
 
 @attrs.frozen(eq=False)
 class TablePressure(PressureLoad):
-    """Piecewise-linear P through the points (times, values), times ``scale``.
+    """P through the points (times, values), times ``scale``: piecewise linear, or a cubic spline.
 
     Without a ``period`` the first and last values are held before and after
     the table.  With a ``period`` T the table is one cycle starting at its
     first time t₀ (it may span at most T; when it ends before t₀ + T the cycle
-    closes linearly back to the first value) and repeats for ever.
+    closes back to the first value) and repeats for ever.
+
+    ``interpolation = "cubic"``: the cubic spline through the points
+    (``scipy.interpolate.CubicSpline``), periodic when the table is (P, P'
+    and P'' continuous through every row and across cycles), not-a-knot
+    otherwise; its integrals are the spline's, exact.
 
     >>> p = TablePressure(np.array([0.0, 1.0]), np.array([0.0, 2.0]), period=2.0)
     >>> float(p.value(1.5)), p.average(0.0, 2.0), p.average(0.0, 4.0)
     (1.0, 1.0, 1.0)
+    >>> p.next_breakpoint(0.0), p.next_breakpoint(1.0), p.next_breakpoint(2.5)
+    (1.0, 2.0, 3.0)
+    >>> c = TablePressure(np.array([0.0, 1.0, 2.0, 3.0]), np.array([1.0, 2.0, 1.0, 0.0]), period=4.0,
+    ...                   interpolation="cubic")
+    >>> round(c.average(0.0, 4.0), 12), round(float(c.value(5.0)), 12), c.next_breakpoint(0.5)
+    (1.0, 2.0, inf)
     """
 
     kind: ClassVar[str] = "table"
@@ -329,8 +232,13 @@ class TablePressure(PressureLoad):
     scale: float = attrs.field(default=1.0, converter=float)
     file: str = ""  #: the file as the case names it
     sha256: str = ""  #: of the file's bytes
+    interpolation: str = "linear"  #: between the rows: one of :data:`INTERPOLATIONS`
+    _spline: Any = attrs.field(init=False, default=None, repr=False)  #: the cubic spline (a PPoly), or None
+    _primitive: Any = attrs.field(init=False, default=None, repr=False)  #: its antiderivative from t₀
 
     def __attrs_post_init__(self) -> None:
+        if self.interpolation not in INTERPOLATIONS:
+            raise ValueError(f"the interpolation must be one of {', '.join(INTERPOLATIONS)}")
         if self.times.shape != self.values.shape or self.times.size < 2:
             raise ValueError("a table needs at least two points (t, p)")
         if not (np.all(np.isfinite(self.times)) and np.all(np.abs(self.times) <= MAX_TABLE_TIME)):
@@ -348,11 +256,14 @@ class TablePressure(PressureLoad):
             raise ValueError(
                 f"the table spans {self.times[-1] - self.times[0]:g} s, more than one period ({self.period:g} s)"
             )
+        if self.interpolation == "cubic":
+            object.__setattr__(self, "_spline", _spline(x, y, self.period is not None))
+            object.__setattr__(self, "_primitive", self._spline.antiderivative())
 
     @classmethod
     def from_csv(cls, path: Path, file: str = "", period: float | None = None, scale: float = 1.0) -> TablePressure:
         """Read ``path`` (see :func:`read_table`); ``file`` is the name as the case gives it."""
-        times, values, digest = _read_csv(path)
+        times, values, digest = read_csv(path)
         return cls(times, values, period=period, scale=scale, file=file or str(path), sha256=digest)
 
     def _knots(self) -> tuple[np.ndarray, np.ndarray]:
@@ -369,12 +280,29 @@ class TablePressure(PressureLoad):
 
     def value(self, t: Any) -> Any:
         x, y = self._knots()
-        return np.interp(self._within(np.asarray(t, dtype=float)), x, y)
+        t = self._within(np.asarray(t, dtype=float))
+        if self._spline is not None:
+            return self._spline(np.clip(t, x[0], x[-1]))
+        return np.interp(t, x, y)
+
+    def cycle(self) -> float | None:
+        return self.period
+
+    def next_breakpoint(self, t: float) -> float:
+        """The rows (linear: the slope jumps at each), repeated every period; a cubic table's first and last
+        rows (held beyond them), a periodic cubic table none."""
+        x, _ = self._knots()
+        if self._spline is None:
+            return next_after(t, x, self.period)
+        return math.inf if self.period is not None else next_after(t, (x[0], x[-1]))
 
     def _antiderivative(self, t: float) -> float:
-        """∫ P from the first time t₀ to t, exact for the piecewise-linear P."""
+        """∫ P from the first time t₀ to t, exact for the piecewise-linear P (and the spline)."""
         x, y = self._knots()
-        cumulative = np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
+        if self._spline is not None:
+            cumulative = self._primitive(x)
+        else:
+            cumulative = np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
         done = 0.0  # whole cycles before t
         if self.period is not None:
             # one divmod for both: floor and mod computed apart can disagree by a cycle at a boundary
@@ -385,6 +313,8 @@ class TablePressure(PressureLoad):
             return done + y[0] * (t - x[0])
         if t >= x[-1]:
             return done + cumulative[-1] + y[-1] * (t - x[-1])
+        if self._spline is not None:
+            return done + float(self._primitive(t))
         i = int(np.searchsorted(x, t, side="right")) - 1
         s, slope = t - x[i], (y[i + 1] - y[i]) / (x[i + 1] - x[i])
         return done + cumulative[i] + y[i] * s + 0.5 * slope * s * s
@@ -393,8 +323,39 @@ class TablePressure(PressureLoad):
         return self._antiderivative(t1) - self._antiderivative(t0)
 
     def to_dict(self) -> dict[str, Any]:
+        # the default interpolation is left out: a linear table's resolved case (and its hash) is what it was
+        cubic = {"interpolation": self.interpolation} if self.interpolation != "linear" else {}
         return {"kind": self.kind, "file": self.file, "period": self.period, "scale": self.scale,
-                "sha256": self.sha256}
+                "sha256": self.sha256, **cubic}
+
+
+def _spline(x: np.ndarray, y: np.ndarray, periodic: bool) -> Any:
+    """The cubic spline through (x, y): periodic (the first and last values must agree), or not-a-knot."""
+    if periodic and y[-1] != y[0]:
+        raise ValueError(f"a periodic cubic table whose last row is at t₀ + period must end on its first value "
+                         f"({y[0]:g}), not {y[-1]:g}")
+    return CubicSpline(x, y, bc_type="periodic" if periodic else "not-a-knot")
+
+
+def next_after(t: float, points: Sequence[float], period: float | None = None) -> float:
+    """The first of the increasing ``points`` after ``t``, repeated every ``period`` when given (math.inf: none).
+
+    A point within round-off of t (1e-12 relative) is t itself: a step that landed on it goes on to the next.
+
+    >>> next_after(0.25, [0.0, 0.5, 1.0]), next_after(1.0, [0.0, 0.5, 1.0]), next_after(2.2, [0.0, 0.5], 1.0)
+    (0.5, inf, 2.5)
+    """
+    points = np.asarray(points, dtype=float)
+    margin = 1e-12 * max(abs(t), float(points[-1] - points[0]), period or 0.0)
+    if period is None:
+        later = points[points > t + margin]
+        return float(later[0]) if later.size else math.inf
+    cycles = (t - points[0]) // period
+    for k in (cycles, cycles + 1.0):
+        later = points[points + k * period > t + margin]
+        if later.size:
+            return float(later[0] + k * period)
+    return math.inf
 
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(5)
@@ -439,6 +400,8 @@ KINDS: dict[str, tuple[Param, ...]] = {
     ),
     "table": (
         Param("file", type=str, doc="CSV file t,p, relative to the case file's folder"),
+        Param("interpolation", type=str, default="linear", choices=INTERPOLATIONS,
+              doc="between the rows: linear, or a cubic spline (periodic when the table is)"),
         Param("period", "T", "s", default=None, gt=0.0, le=MAX_TABLE_TIME, doc="repeat the table with this period"),
         Param("scale", default=1.0, doc="factor applied to every p"),
         Param("sha256", type=str, default=None, doc="expected SHA-256 of the file (checked if given)"),
@@ -526,7 +489,7 @@ def _table(params: dict[str, Any], path: str, base_dir: Path) -> TablePressure:
     where, name = f"{path}.file", params["file"]
     file = base_dir / name
     try:
-        times, values, digest = _read_csv(file)
+        times, values, digest = read_csv(file)
     except FileNotFoundError:
         raise CaseError([Problem(where, name, "no such file", f"looked for {file}")]) from None
     except FileRefused as exc:
@@ -542,7 +505,8 @@ def _table(params: dict[str, Any], path: str, base_dir: Path) -> TablePressure:
         raise CaseError([Problem(f"{path}.scale", params["scale"], f"scale × p overflows for p = {p:g} in {name}",
                                  "expected a finite scaled pressure")])
     try:
-        table = TablePressure(times, values, period=params["period"], scale=params["scale"], file=name, sha256=digest)
+        table = TablePressure(times, values, period=params["period"], scale=params["scale"], file=name, sha256=digest,
+                              interpolation=params["interpolation"])
     except ValueError as exc:
         raise CaseError([Problem(where, name, f"invalid table: {exc}")]) from None
     expected = params["sha256"]

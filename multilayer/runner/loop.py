@@ -268,7 +268,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "steps": tally.steps,
         "t": tally.t,
         "dt": case.time.dt,
-        **clock.summary(tally.clock, case.time.tolerance),
+        **clock.summary(tally.clock, case),
         "scheme": _scheme(coupler),
         "wall_time_s": tally.wall_time_s + time.perf_counter() - wall_t0,
         "timings": _timings(setup),
