@@ -82,8 +82,10 @@ class Coupler(ABC):
             return []
         name = getattr(self, "name", type(self).__name__)
         offered = (f"it takes them with scheme = {' or '.join(repr(s) for s in self.adaptive)}" if self.adaptive
-                   else "choose 'monolithic' or 'kinematic-splitting' with scheme = 'crank-nicolson'")
-        why = "first order" if self.scheme.order == 1 else "a multistep rule without variable-step coefficients here"
+                   else "choose 'monolithic' with scheme = 'crank-nicolson' or 'bdf2', or 'kinematic-splitting' "
+                        "with scheme = 'crank-nicolson'")
+        why = "first order" if self.scheme.order == 1 else f"not estimated in {name}"
+
         reason = (f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
                   f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is {why}); "
                   f"{offered}, or remove time.tolerance")
