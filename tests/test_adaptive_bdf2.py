@@ -16,8 +16,8 @@ from multilayer.numerics.timescheme import SCHEMES
 
 BDF2 = 'coupler={model="monolithic",scheme="bdf2"}'
 #: the start of a pulse from rest grows both the energy and the steps; the G-norm's change at a growing step
-#: puts E above E⁰ + work by up to 1.4 % of the work here (4.1 % at tol 1e-2; measured, docs/theory.md "Variable-step BDF2"), over
-#: the default margin of 1 %
+#: puts E above E⁰ + work by up to 1.4 % of the work here (4.1 % at tol 1e-2; measured, docs/theory.md
+#: "Variable-step BDF2"), over the default margin of 1 %
 MARGIN = "solver.energy_margin=0.05"
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.dt=1e-6", BDF2, "time.tolerance=1e-3", "time.output_interval=1e-3",
          MARGIN)
@@ -86,3 +86,13 @@ def test_an_adaptive_bdf2_run_resumed_from_its_checkpoint_is_bit_identical(tmp_p
     """The old levels and the step before's length are in the checkpointed state (its previous levels), the
     controller's record in extra['clock']: a run to 2 ms resumed to 4 ms writes the bytes of a run to 4 ms."""
     assert_resume_is_bit_identical(tmp_path, "pulse-koiter-thick", *SMALL, every=10, half=0.002, end=0.004)
+
+
+def test_an_adaptive_bdf2_run_past_the_default_energy_margin_says_why_and_what_to_set(tmp_path):
+    """With the default margin (1 %) the coarse pulse at tol 1e-3 stops while the pulse loads the wall (E above
+    E⁰ + work by 1.4 % of the work there): the message names the G-norm and solver.energy_margin, rows kept."""
+    sets = [s for s in SMALL if s != MARGIN]
+    code, summary, rows = run_cli("pulse-koiter-thick", tmp_path / "a", *sets, "time.end=0.002")
+    assert code != 0 and summary["status"] == "failed"
+    assert "energy grew beyond the work" in summary["reason"] and "solver.energy_margin = 0.05" in summary["reason"]
+    assert len(rows) == summary["steps"] > 2
