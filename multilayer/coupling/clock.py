@@ -199,7 +199,9 @@ class Adaptive:
             counted = self.factorizations()
             new, report = advance(state, window)
             new = integrate(state, new, window)
-            if record["last"] and window.dt != record["last"]:
+            if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
+                                   or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
+
                 record["refactorizations"] += self.factorizations() - counted
             err = self.error(state, new, window.dt, record)
             if err is not None and err > 1.0:
