@@ -10,7 +10,6 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
 * the error of a step is the scheme's local error estimate, Crank–Nicolson's or
   BDF2's (:func:`multilayer.numerics.stepsize.local_error`: no extra linear solve; BDF2's
   times α₀, the part that stays in the run's error, :func:`~multilayer.numerics.stepsize.carried`) of
-
   the wall displacement d and of the fluid velocity's time integral X
   (:func:`fields`: the velocities through their integrals), each in the max
   norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
@@ -201,7 +200,6 @@ class Adaptive:
             new = integrate(state, new, window)
             if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
                                    or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
-
                 record["refactorizations"] += self.factorizations() - counted
             err = self.error(state, new, window.dt, record)
             if err is not None and err > 1.0:
