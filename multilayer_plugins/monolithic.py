@@ -15,9 +15,10 @@ predicted domain misses of the true one is the fluid's geometric remainder
 (``dissipation.geometric.fluid``).  No splitting error: this is the
 accuracy reference of the project, and its cost anchor.
 
-With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
+With Crank–Nicolson and BDF2 it takes adaptive steps (``[time] tolerance``,
 :mod:`multilayer.coupling.clock`): a new Δt changes the wall's share of the
-matrix (its pattern stays), the extrapolations see the step ratio.
+matrix (its pattern stays), the extrapolations see the step ratio, and so do
+variable-step BDF2's coefficients (a new ratio at the same Δt changes α₀).
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ class Monolithic(ThickLumen, Coupler):
     name = "monolithic"
     loads = ("inlet", "outlet", "external")
     schemes = tuple(SCHEMES)
-    adaptive = ("crank-nicolson",)
+    adaptive = ("crank-nicolson", "bdf2")
 
     def check_case(self, case) -> list[str]:
         return super().check_case(case) + coupled_case_problems(self.name, case)
@@ -80,16 +81,17 @@ class Monolithic(ThickLumen, Coupler):
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         fluid, wall, stack = setup.fluid, setup.wall, setup.stack
         R = wall.restrictions[LUMEN]
-        structure = StructureStep(stack, self.scheme, setup.dt, setup.stats("wall"))
+        wall_stats = setup.stats("wall")
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
         solver = ReusingSolver(setup.stats("monolithic"), setup.case.solver, setup.case.reuse)
-        held: dict = {"dt": None, "layout": None}  # the wall's matrix of the last Δt, the system's layout
+        held: dict = {"key": None, "layout": None}  # the wall's matrix of the last Δt and α, the system's layout
 
         def advance(state: State, w: Window) -> tuple[State, StepReport]:
             S, dt, t0, t1 = w.scheme, w.dt, w.t0, w.t1
-            if held["dt"] != dt:  # a new Δt (adaptive steps): the wall's matrix changes, its pattern does not
-                held["dt"], held["wall"] = dt, sp.coo_matrix(structure.matrix(dt))
+            structure = StructureStep(stack, S, dt, wall_stats)  # S: the step's ratio (BDF2's α)
+            if held["key"] != (dt, S.alpha):  # adaptive steps: the wall's matrix changes, its pattern does not
+                held["key"], held["wall"] = (dt, S.alpha), sp.coo_matrix(structure.matrix(dt))
             A_wall, layout = held["wall"], held["layout"]
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)

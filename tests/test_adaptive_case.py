@@ -34,7 +34,8 @@ def test_bad_adaptive_time_keys_are_refused_with_their_key_path(sets, path, word
 
 
 @pytest.mark.parametrize("coupler", ['{model="kinematic-splitting"}', '{model="monolithic",scheme="backward-euler"}',
-                                     '{model="monolithic",scheme="bdf2"}', '{model="dirichlet-neumann-implicit"}'])
+                                     '{model="fluid-only",scheme="bdf2"}',
+                                     '{model="dirichlet-neumann-implicit"}'])
 def test_a_coupler_without_an_error_estimate_refuses_a_tolerance(coupler):
     found = problems(f"coupler={coupler}", "time.tolerance=1e-3")
     assert any("time.tolerance = 0.001 asks for adaptive steps" in p for p in found), found

@@ -7,8 +7,9 @@ a rejected step is simply dropped: the retry starts from the same state.
 
 Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps"):
 
-* the error of a step is the Crank–Nicolson local error estimate
-  (:func:`multilayer.numerics.stepsize.local_error`: no extra linear solve) of
+* the error of a step is the scheme's local error estimate, Crank–Nicolson's or
+  BDF2's (:func:`multilayer.numerics.stepsize.local_error`: no extra linear solve; BDF2's
+  times α₀, the part that stays in the run's error, :func:`~multilayer.numerics.stepsize.carried`) of
   the wall displacement d and of the fluid velocity's time integral X
   (:func:`fields`: the velocities through their integrals), each in the max
   norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
@@ -25,6 +26,10 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   smaller; one that would go below ``time.dt_min`` stops the run
   (:class:`SchemeFailure`, every row so far kept);
 * the first two steps are ``time.dt`` (the estimate needs three old levels);
+* a multistep rule's step is at most :data:`~multilayer.numerics.stepsize.GROW` = 2 times
+  the one before: variable-step BDF2 is zero-stable for ratios below 1 + √2 only
+  (:meth:`~multilayer.numerics.timescheme.TimeScheme.with_ratio`), and a step after
+  one clipped to land would otherwise jump back by up to 4;
 * steps are clipped to land on ``time.end``, on every multiple of
   ``time.output_interval`` and on the loads' breakpoints (a linear table's
   rows, a pulse's end: :meth:`~multilayer.functions.loads.PressureLoad.next_breakpoint`),
@@ -44,7 +49,7 @@ import numpy as np
 
 from multilayer.case.model import Case
 from multilayer.coupling.contract import SchemeFailure, StepReport
-from multilayer.numerics.stepsize import Controller, local_error
+from multilayer.numerics.stepsize import GROW, Controller, carried, local_error
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.scene.setup import Setup
 from multilayer.scene.state import State
@@ -103,14 +108,17 @@ def fields(state: State) -> dict[str, np.ndarray]:
     return out
 
 
-def integrate(state: State, new: State) -> State:
-    """``new`` with its fluid velocity integral X (0 at the start), by the trapezoidal rule over the step."""
-    u_new, u_old = getattr(new.fluid, "u", None), getattr(state.fluid, "u", None)
-    if u_new is None:
+def integrate(state: State, new: State, window: Window) -> State:
+    """``new`` with its fluid velocity integral X (0 at the start), by the step's own rule Σα_k X^{n+1−k} = Δt ū
+    (the trapezoidal rule for Crank–Nicolson, BDF2 for BDF2: X is to u what the wall's d is to V)."""
+    if getattr(new.fluid, "u", None) is None:
         return new
-    before = state.extra.get("fluid.X")
-    before = np.zeros_like(u_old) if before is None else before
-    return attrs.evolve(new, extra={**new.extra, "fluid.X": before + (new.t - state.t) * 0.5 * (u_new + u_old)})
+    S = window.scheme
+    old = state.history(S.levels - 1)
+    us = [new.fluid.u, *[x.fluid.u for x in old]]
+    Xs = [x.extra.get("fluid.X") for x in old]
+    Xs = [np.zeros_like(us[0]) if X is None else X for X in Xs]
+    return attrs.evolve(new, extra={**new.extra, "fluid.X": S.displacement(S.average(us), Xs, window.dt)})
 
 
 class Adaptive:
@@ -147,6 +155,9 @@ class Adaptive:
         """The step from ``state`` of the proposed length, clipped to Δt_max and to land (no sliver)."""
         t0 = state.t
         dt = min(proposal, self.hi)
+        steps = [x.t for x in state.history(3)]  # tⁿ, tⁿ⁻¹, tⁿ⁻² (repeated at the start)
+        if math.isfinite(self.scheme.max_ratio) and steps[1] < t0:
+            dt = min(dt, GROW * (t0 - steps[1]))
         land = self.landing(t0)
         if t0 + dt >= land - 1e-9 * dt:
             dt, t1 = land - t0, land
@@ -154,8 +165,9 @@ class Adaptive:
             if t0 + 2.0 * dt > land:
                 dt = 0.5 * (land - t0)
             t1 = t0 + dt
-        ratio = dt / (t0 - state.previous.t) if state.previous is not None else 1.0
-        return Window(state.n, t0, t1, dt, self.scheme.with_ratio(ratio))
+        ratio = dt / (t0 - steps[1]) if steps[1] < t0 else 1.0
+        previous = (t0 - steps[1]) / (steps[1] - steps[2]) if steps[2] < steps[1] else 1.0
+        return Window(state.n, t0, t1, dt, self.scheme.with_ratio(ratio, previous))
 
     def factorizations(self) -> int:
         """Factorizations so far, every system of the run (the coupler's and the fluid's)."""
@@ -173,7 +185,8 @@ class Adaptive:
         levels = [fields(s) for s in old]
         worst = 0.0
         for name, x in fields(new).items():
-            e = float(np.max(np.abs(local_error(x, [lv[name] for lv in levels], k))))
+            e = float(np.max(np.abs(local_error(x, [lv[name] for lv in levels], k, self.scheme.name))))
+            e *= carried(self.scheme.name, k)
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
             if scale > 0.0:
                 worst = max(worst, e / scale)
@@ -196,8 +209,9 @@ class Adaptive:
             window = self.window(state, record["dt"])
             counted = self.factorizations()
             new, report = advance(state, window)
-            new = integrate(state, new)
-            if record["last"] and window.dt != record["last"]:
+            new = integrate(state, new, window)
+            if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
+                                   or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
                 record["refactorizations"] += self.factorizations() - counted
             err = self.error(state, new, window.dt, record)
             if err is not None and err > 1.0:

@@ -82,14 +82,30 @@ class Coupler(ABC):
             return []
         name = getattr(self, "name", type(self).__name__)
         offered = (f"it takes them with scheme = {' or '.join(repr(s) for s in self.adaptive)}" if self.adaptive
-                   else "choose 'monolithic' or 'kinematic-splitting' with scheme = 'crank-nicolson'")
-        why = "first order" if self.scheme.order == 1 else "a multistep rule without variable-step coefficients here"
+                   else "choose 'monolithic' with scheme = 'crank-nicolson' or 'bdf2', or 'kinematic-splitting' "
+                        "with scheme = 'crank-nicolson'")
+        why = "first order" if self.scheme.order == 1 else f"not estimated in {name}"
+
         reason = (f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
                   f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is {why}); "
                   f"{offered}, or remove time.tolerance")
         return [reason]
 
+    def energy_bound_note(self, case: Case) -> str:
+        """What the runner adds when a step breaks E ≤ E⁰ + work beyond ``solver.energy_margin`` (empty: nothing).
+
+        Variable-step BDF2 is not G-stable for growing steps: its energy may exceed E⁰ + work by a few percent
+        without any instability (docs/theory.md, "Variable-step BDF2").
+        """
+        if case.time.tolerance is None or self.scheme.levels <= 2:
+            return ""
+        return (f" — or not: with adaptive steps, {self.scheme.name}'s energy may exceed E⁰ + work by a few percent "
+                f"of the work while the steps grow, without instability (its G-norm depends on the step ratio: "
+                f"docs/theory.md, 'Variable-step BDF2'); set solver.energy_margin = 0.05")
+
+
     def fluid_wall(self, case: Case) -> str:
+
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""
         return "coupled"
 

@@ -1,7 +1,7 @@
-"""Steps chosen by error: the Crank–Nicolson local error estimate and the step-size controller.
+"""Steps chosen by error: the local error estimates of Crank–Nicolson and BDF2, and the step-size controller.
 
 The estimate (derivation in docs/theory.md, "Adaptive steps") compares the
-Crank–Nicolson value x^{n+1} with an explicit AB2-type predictor built from
+corrector's value x^{n+1} with an explicit AB2-type predictor built from
 levels the run already has: the midpoint difference quotients
 Dⁿ = (xⁿ − xⁿ⁻¹)/kₙ₋₁ and Dⁿ⁻¹ = (xⁿ⁻¹ − xⁿ⁻²)/kₙ₋₂ stand at tⁿ⁻½ and tⁿ⁻³ᐟ²;
 extrapolated linearly to tⁿ⁺½ they give
@@ -9,13 +9,19 @@ extrapolated linearly to tⁿ⁺½ they give
     x^p = xⁿ + kₙ (Dⁿ + (kₙ + kₙ₋₁)/(kₙ₋₁ + kₙ₋₂) (Dⁿ − Dⁿ⁻¹)),
 
 exact for quadratics (AB2 with midpoint slopes; it is the quadratic through
-xⁿ⁻², xⁿ⁻¹, xⁿ evaluated at tⁿ⁺¹).  Their errors are, to leading order,
+xⁿ⁻², xⁿ⁻¹, xⁿ evaluated at tⁿ⁺¹).  Its error is, to leading order,
 
-    x^{n+1} − x(tⁿ⁺¹) = kₙ³/12 x''',      x(tⁿ⁺¹) − x^p = kₙ(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)/6 x''',
+    x(tⁿ⁺¹) − x^p = kₙ(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)/6 x''',
 
-so the Crank–Nicolson local error is the computed difference scaled:
+and the correctors' local errors are
 
-    e = kₙ² / (kₙ² + 2(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)) · (x^{n+1} − x^p)     (1/13 for equal steps).
+    Crank–Nicolson:  x^{n+1} − x(tⁿ⁺¹) = kₙ³/12 x''',
+    BDF2:            x^{n+1} − x(tⁿ⁺¹) = kₙ²(kₙ + kₙ₋₁)/(6α₀) x''',   α₀ = (1 + 2ω)/(1 + ω), ω = kₙ/kₙ₋₁,
+
+so the local error is the computed difference scaled (Milne's device, :func:`milne`):
+
+    Crank–Nicolson:  e = kₙ² / (kₙ² + 2(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)) · (x^{n+1} − x^p)   (1/13 for equal steps),
+    BDF2:            e = kₙ / (kₙ + α₀(kₙ + kₙ₋₁ + kₙ₋₂)) · (x^{n+1} − x^p)               (2/11 for equal steps).
 
 No linear solve: the predictor is three old levels.
 
@@ -25,6 +31,8 @@ No linear solve: the predictor is three old levels.
 >>> cn = xs[0] + k[0] ** 3 / 12                       # the CN value: exact + its local error
 >>> round(float(local_error(cn, xs[1:], k) / (k[0] ** 3 / 12)), 12)
 1.0
+>>> round(milne("crank-nicolson", k), 12), round(milne("bdf2", k), 12)
+(0.076923076923, 0.181818181818)
 """
 
 from __future__ import annotations
@@ -51,10 +59,41 @@ def predictor(old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
     return old[0] + k[0] * (d_now + (k[0] + k[1]) / (k[1] + k[2]) * (d_now - d_before))
 
 
-def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
-    """The Crank–Nicolson local error of x^{n+1} = ``new`` (module docstring)."""
-    scale = k[0] ** 2 / (k[0] ** 2 + 2.0 * (k[0] + k[1]) * (k[0] + k[1] + k[2]))
-    return scale * (new - predictor(old, k))
+def milne(scheme: str, k: Sequence[float]) -> float:
+    """e/(x^{n+1} − x^p): ``scheme``'s local error of x^{n+1} over its distance from the predictor (module docstring).
+
+    >>> round(milne("bdf2", [0.2, 0.1, 0.1]), 12)        # ω = 2, α₀ = 5/3: 0.2/(0.2 + 5/3 · 0.4) = 3/13
+    0.230769230769
+    """
+    if scheme == "crank-nicolson":
+        return k[0] ** 2 / (k[0] ** 2 + 2.0 * (k[0] + k[1]) * (k[0] + k[1] + k[2]))
+    if scheme == "bdf2":
+        w = k[0] / k[1]
+        return k[0] / (k[0] + (1.0 + 2.0 * w) / (1.0 + w) * (k[0] + k[1] + k[2]))
+    raise ValueError(f"no local error estimate for {scheme!r}; there is one for crank-nicolson and bdf2")
+
+
+def carried(scheme: str, k: Sequence[float]) -> float:
+    """How much of a step's local error stays in the run's (smooth) error: 1 for a one-step rule, α₀ for BDF2.
+
+    BDF2's error recursion α₀(eⁿ⁺¹ − eⁿ) − α₂(eⁿ − eⁿ⁻¹) = kₙτ + …, for a smooth error
+    (eⁿ − eⁿ⁻¹ ≈ (eⁿ⁺¹ − eⁿ)/ω), is (α₀ − α₂/ω)(eⁿ⁺¹ − eⁿ) = eⁿ⁺¹ − eⁿ = kₙτ: a step adds its
+    truncation error kₙτ = α₀ · (its local error), not the local error itself (docs/theory.md, "Adaptive steps").
+
+    >>> carried("crank-nicolson", [0.1, 0.1, 0.1]), carried("bdf2", [0.1, 0.1, 0.1])
+    (1.0, 1.5)
+    """
+    if scheme != "bdf2":
+        return 1.0
+    w = k[0] / k[1]
+    return (1.0 + 2.0 * w) / (1.0 + w)
+
+
+def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float],
+
+                scheme: str = "crank-nicolson") -> np.ndarray:
+    """The local error of ``scheme``'s x^{n+1} = ``new`` (module docstring)."""
+    return milne(scheme, k) * (new - predictor(old, k))
 
 
 @attrs.frozen

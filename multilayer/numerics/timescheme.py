@@ -14,28 +14,39 @@ refactorized midpoint rule); for backward Euler and BDF2, x̄ = x^{n+1}.
 
 Testing with x̄ gives the energy identity of the scheme, for q(x) = ½xᵀMx:
 
-    (Σ_k α_k x^{n+1−k})ᵀ M x̄ = stored(q, xⁿ⁺¹…) − stored(q, xⁿ…) + numerical(q, xⁿ⁺¹…)
+    (Σ_k α_k x^{n+1−k})ᵀ M x̄ = stored(q, xⁿ⁺¹…) − before(q, xⁿ⁺¹…) + numerical(q, xⁿ⁺¹…)
 
-where ``stored`` is the energy the scheme conserves (q itself for backward
-Euler and Crank–Nicolson, the G-norm ½(q(x^{n+1}) + q(2x^{n+1} − xⁿ)) for
-BDF2) and ``numerical`` ≥ 0 is its numerical dissipation (zero for
-Crank–Nicolson).
+where ``stored`` is the energy the scheme carries at the new level (q itself
+for backward Euler and Crank–Nicolson, the G-norm ½(q(x^{n+1}) + q(2x^{n+1} − xⁿ))
+for BDF2), ``before`` the same at the old level as the step before stored it,
+and ``numerical`` the numerical dissipation (≥ 0 for constant steps, zero for
+Crank–Nicolson).  Variable-step BDF2 (:meth:`TimeScheme.with_ratio`, docs/theory.md
+"Variable-step BDF2") has a G-norm that depends on the step ratio ω; the change
+of it from one step to the next is part of ``numerical``, so the identity stays
+exact with changing Δt.
 
 >>> import numpy as np
 >>> M = np.diag([2.0, 3.0]); q = lambda x: 0.5 * x @ M @ x
 >>> rng = np.random.default_rng(0)
+>>> ratios = {"bdf2": [(1.0, 1.0), (1.7, 1.0), (0.4, 2.0), (2.0, 0.5)]}
 >>> for s in SCHEMES.values():
-...     xs = [rng.normal(size=2) for _ in range(s.levels)]
-...     lhs = s.difference(xs) @ M @ s.average(xs)
-...     rhs = s.stored(q, xs) - s.stored(q, xs[1:] + xs[-1:]) + s.numerical(q, xs)
-...     print(s.name, abs(lhs - rhs) < 1e-12)
-backward-euler True
-crank-nicolson True
-bdf2 True
+...     for ratio, before in ratios.get(s.name, [(1.0, 1.0)]):
+...         v = s.with_ratio(ratio, before)
+...         xs = [rng.normal(size=2) for _ in range(s.levels)]
+...         lhs = v.difference(xs) @ M @ v.average(xs)
+...         rhs = v.stored(q, xs) - v.before(q, xs) + v.numerical(q, xs)
+...         print(s.name, ratio, abs(lhs - rhs) < 1e-12)
+backward-euler 1.0 True
+crank-nicolson 1.0 True
+bdf2 1.0 True
+bdf2 1.7 True
+bdf2 0.4 True
+bdf2 2.0 True
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import attrs
@@ -59,8 +70,10 @@ class TimeScheme:
     order : int
         Order of accuracy in time.
     ratio : float
-        ω = Δtⁿ/Δtⁿ⁻¹, the step's ratio to the one before (1 for constant steps): only the
-        extrapolations see it, Crank–Nicolson's α and β do not depend on it (:meth:`with_ratio`).
+        ω = Δtⁿ/Δtⁿ⁻¹, the step's ratio to the one before (1 for constant steps): the
+        extrapolations see it, and BDF2's α (:meth:`with_ratio`).
+    previous : float
+        The ratio of the step before (BDF2's G-norm of the old level is that step's).
     """
 
     name: str
@@ -68,20 +81,49 @@ class TimeScheme:
     beta: tuple[float, ...]
     order: int
     ratio: float = 1.0
+    previous: float = 1.0
 
-    def with_ratio(self, ratio: float) -> TimeScheme:
-        """This rule for a step ω = ``ratio`` times the one before.
+    def with_ratio(self, ratio: float, previous: float = 1.0) -> TimeScheme:
+        """This rule for a step ω = ``ratio`` times the one before, which was ``previous`` times its own.
 
         One-step rules keep their coefficients (Crank–Nicolson's identity holds
-        step by step with that step's Δt); BDF2's would change with ω, which is
-        not offered, so asking for it is an error.
+        step by step with that step's Δt).  BDF2 differentiates the quadratic
+        through x^{n+1}, xⁿ, x^{n−1} at t^{n+1}:
+
+            α = ((1 + 2ω)/(1 + ω), −(1 + ω), ω²/(1 + ω)),
+
+        zero-stable for ω < 1 + √2 (:attr:`max_ratio`; asking for more is an error).
 
         >>> SCHEMES["crank-nicolson"].with_ratio(2.0).extrapolate([1.0, 0.0])
         2.0
+        >>> s = SCHEMES["bdf2"].with_ratio(2.0)
+        >>> [round(a, 12) for a in s.alpha], sum(s.alpha)
+        ([1.666666666667, -3.0, 1.333333333333], 0.0)
+
+        Exact on quadratics with uneven steps (Δtⁿ = 0.2 after Δtⁿ⁻¹ = 0.1): Σα_k x^{n+1−k}/Δt = x'(t^{n+1}).
+
+        >>> t = [0.3, 0.1, 0.0]
+        >>> [round(float(s.difference([f(x) for x in t]) / 0.2), 12) for f in (lambda x: 1.0 + 0 * x,
+        ...                                                                    lambda x: x, lambda x: x * x)]
+        [0.0, 1.0, 0.6]
+        >>> SCHEMES["bdf2"].with_ratio(2.5)
+        Traceback (most recent call last):
+        ...
+        ValueError: bdf2 is stable for step ratios below 2.414 (1 + √2), got 2.5
         """
-        if ratio != 1.0 and self.levels > 2:
-            raise ValueError(f"{self.name} has no variable-step coefficients here; only one-step rules change Δt")
-        return attrs.evolve(self, ratio=float(ratio))
+        if self.levels <= 2:
+            return attrs.evolve(self, ratio=float(ratio), previous=float(previous))
+        if not 0.0 < ratio < self.max_ratio:
+            raise ValueError(f"{self.name} is stable for step ratios below {self.max_ratio:.4g} (1 + √2), "
+                             f"got {ratio:g}")
+        w = float(ratio)
+        alpha = (1.5, -2.0, 0.5) if w == 1.0 else ((1.0 + 2.0 * w) / (1.0 + w), -(1.0 + w), w * w / (1.0 + w))
+        return attrs.evolve(self, alpha=alpha, ratio=w, previous=float(previous))
+
+    @property
+    def max_ratio(self) -> float:
+        """The largest step ratio ω the rule takes: 1 + √2 for BDF2 (zero stability), none for one-step rules."""
+        return 1.0 + math.sqrt(2.0) if self.levels > 2 else math.inf
 
     @property
     def levels(self) -> int:
@@ -192,18 +234,43 @@ class TimeScheme:
 
     # -- the energy identity -------------------------------------------------------
     def stored(self, q: Quadratic, xs: Sequence[np.ndarray]) -> float:
-        """The energy the scheme's identity carries at the newest level of ``xs``."""
-        if self.name == "bdf2":
+        """The energy the scheme's identity carries at the newest level of ``xs``.
+
+        BDF2: (1 − p) q(x^{n+1}) + p q(2x^{n+1} − xⁿ) with p = ω/(1 + ω) (½ for constant steps).
+        """
+        if self.name != "bdf2":
+            return q(xs[0])
+        if self.ratio == 1.0:
             return 0.5 * (q(xs[0]) + q(2.0 * xs[0] - xs[1]))
-        return q(xs[0])
+        p = self.ratio / (1.0 + self.ratio)
+        return (1.0 - p) * q(xs[0]) + p * q(2.0 * xs[0] - xs[1])
+
+    def before(self, q: Quadratic, xs: Sequence[np.ndarray]) -> float:
+        """The energy at the old level xⁿ of ``xs`` (newest first) as the step before stored it (its ratio)."""
+        if self.name != "bdf2" or self.previous == self.ratio:
+            return self.stored(q, xs[1:])
+        return attrs.evolve(self, ratio=self.previous).stored(q, xs[1:])
 
     def numerical(self, q: Quadratic, xs: Sequence[np.ndarray]) -> float:
-        """Numerical dissipation of one step (≥ 0 for a positive semi-definite q)."""
+        """Numerical dissipation of one step: Σα_k x^{n+1−k}·M x̄ − stored + before.
+
+        Backward Euler: q(x^{n+1} − xⁿ).  BDF2 (docs/theory.md, "Variable-step BDF2"), with
+        u = x^{n+1} − xⁿ, w = xⁿ − x^{n−1}, b = ω²/(1 + ω), p₋ = ω₋/(1 + ω₋) (ω₋ the step before's ratio):
+
+            (1 − ω) q(u) + b q(u − w) + (p₋ − b)(q(2xⁿ − x^{n−1}) − q(xⁿ)),
+
+        ½q(x^{n+1} − 2xⁿ + x^{n−1}) ≥ 0 for constant steps; a growing step (ω > 1) and a change of
+        ratio (the G-norm's change, the last term) make it of either sign.
+        """
         if self.name == "backward-euler":
             return q(xs[0] - xs[1])
-        if self.name == "bdf2":
+        if self.name != "bdf2":
+            return 0.0
+        if self.ratio == 1.0 and self.previous == 1.0:
             return 0.5 * q(xs[0] - 2.0 * xs[1] + xs[2])
-        return 0.0
+        w, u, v = self.ratio, xs[0] - xs[1], xs[1] - xs[2]
+        b, p = w * w / (1.0 + w), self.previous / (1.0 + self.previous)
+        return (1.0 - w) * q(u) + b * q(u - v) + (p - b) * (q(2.0 * xs[1] - xs[2]) - q(xs[1]))
 
 
 SCHEMES: dict[str, TimeScheme] = {

@@ -204,5 +204,12 @@ def iterate_steps(setup: Setup, coupler: Coupler, state: State, tally: Tally, pr
             if output is not None:
                 output.fields(step)
             setup.timings["output"] += time.perf_counter() - t_out
-            tally.bound.check(new.t, terms)  # after the row is written: the row that breaks it is kept
+            try:
+                tally.bound.check(new.t, terms)  # after the row is written: the row that breaks it is kept
+            except RunFailed as exc:
+                note = coupler.energy_bound_note(setup.case)
+                if not note:
+                    raise
+                raise RunFailed(f"{exc}{note}") from exc
+
             yield step

@@ -450,8 +450,8 @@ class FluidStep:
 
         us = [quad.values(u) for u in us]  # the identity's quadratures are on values, linear in the DOFs
         stored_new = S.stored(q(J_new), us)
-        stored_old = S.stored(q(J_old), us[1:])
-        geometric = (S.stored(q(J_new - fields.J), us) - S.stored(q(J_old - fields.J), us[1:])
+        stored_old = S.before(q(J_old), us)
+        geometric = (S.stored(q(J_new - fields.J), us) - S.before(q(J_old - fields.J), us)
                      - dt * quad.kinetic(fields.dJdt, quad.values(ubar)))
         strain = quad.strain_squared(ubar, fields)
         # each end's outward flux Q̄ = ∫ J ū·n, and what its condition makes of the power −Δt p̄ Q̄ it hands the fluid
