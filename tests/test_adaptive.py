@@ -16,9 +16,8 @@ from multilayer.numerics.stepsize import Controller, local_error, predictor
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
 SPLITTING = 'coupler={model="kinematic-splitting",scheme="crank-nicolson",beta=1}'
-#: the tolerance each coupler is tested at: the splitting's estimate carries its error constant (10), and
-#: below about 1e-2 its steps collapse at the start on the composite wall (docs/accuracy.md, "Adaptive steps")
-TOLERANCE = {MONOLITHIC: "1e-3", SPLITTING: "1e-2"}
+#: the tolerance each coupler is tested at
+TOLERANCE = {MONOLITHIC: "1e-3", SPLITTING: "1e-3"}
 
 
 def test_the_predictor_is_exact_for_quadratics_and_the_estimate_for_cubics_on_uneven_steps():
