@@ -145,3 +145,43 @@ def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler):
     work = np.cumsum([sum(float(v) for k, v in r.items() if k.startswith("work.")) for r in rows])
     assert np.all(energy <= work + 1e-9 * np.max(np.abs(work)))
     assert max(float(r["energy.relative_residual"]) for r in rows) <= 1e-9
+
+
+class _Level:
+    """A level of a run as :meth:`KinematicSplitting.estimate` reads it: n, t, wall.d, extra, history."""
+
+    def __init__(self, n, t, d, extra, previous=None):
+        self.n, self.t, self.extra, self.previous = n, t, extra, previous
+        self.wall = type("Wall", (), {"d": np.array(d, dtype=float)})
+
+    def history(self, levels):
+        out = [self]
+        while len(out) < levels:
+            out.append(out[-1].previous or out[-1])
+        return out
+
+
+def test_the_splitting_estimate_sees_its_smooth_defect_and_not_the_alternating_one():
+    """One lumen DOF (P = R = 1) on uneven steps.  η − Z = t³/6 with Z of a (−1)ⁿ rate: the Crank–Nicolson part is
+    the estimate of t³/6 alone (k³/12 for its CN value); the next-step part of a rate c(−1)ⁿ is 0 whatever the
+    steps, and of a constant rate c is k·c."""
+    from multilayer.coupling.clock import Window
+    from multilayer_plugins.kinematic_splitting import KinematicSplitting
+
+    k = [0.3, 0.1, 0.2]
+    t = [0.0, 0.2, 0.3, 0.6]
+    rates = [np.array([0.5 * (-1) ** n]) for n in range(4)]
+    z = np.cumsum([0.0, *(dt * r[0] for dt, r in zip(np.diff(t), rates[1:]))])
+    levels = None
+    for n in range(3):  # the old levels: η = t³/6 + Z (their CN values do not matter: the predictor is on them)
+        levels = _Level(n, t[n], [t[n] ** 3 / 6 + z[n]],
+                        {"splitting.Z": np.array([z[n]]), "splitting.rate": rates[n]}, levels)
+    one = np.eye(1)
+    d_new = np.array([t[3] ** 3 / 6 + k[0] ** 3 / 12 + z[3]])
+    out = KinematicSplitting.estimate(levels, Window(2, t[2], t[3], k[0], None), d_new, one, one, rates[3])
+    assert math.isclose(float(out["estimate.wall.d"][0]), k[0] ** 3 / 12, rel_tol=1e-9)
+    assert out["estimate.next.wall.d"][0] == 0.0 and math.isclose(float(out["splitting.Z"][0]), z[3], rel_tol=1e-12)
+    steady = {**levels.extra, "splitting.rate": np.array([0.5])}
+    levels = _Level(levels.n, levels.t, levels.wall.d, steady, levels.previous)
+    out = KinematicSplitting.estimate(levels, Window(2, t[2], t[3], k[0], None), d_new, one, one, np.array([0.5]))
+    assert math.isclose(float(out["estimate.next.wall.d"][0]), k[0] * 0.5, rel_tol=1e-12)
