@@ -122,8 +122,9 @@ def test_a_study_puts_adaptive_and_fixed_runs_on_one_front(tmp_path):
     assert set(data["pareto"]) <= set(rows) and "## Adaptive steps" in (out / "study.md").read_text()
 
 
-#: the light wall's tolerances: the splitting's 1e-2 takes 25 000 steps there (docs/accuracy.md), 1e-1 a few thousand
-LIGHT = {MONOLITHIC: "1e-3", SPLITTING: "1e-1"}
+#: the light wall's tolerances: the splitting's steps there are set by its splitting error (1e-1: 3 714 steps over
+#: 0.05 s, 3e-1: 2 159, the fewest above the 2 000 that dt_max asks for anyway)
+LIGHT = {MONOLITHIC: "1e-3", SPLITTING: "3e-1"}
 
 
 @pytest.mark.parametrize("coupler", [MONOLITHIC, SPLITTING], ids=["monolithic-cn", "splitting-cn-beta1"])
@@ -131,7 +132,7 @@ def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler):
     """ρ₁h/(ρ_f R) = 1e-3 (the light-wall scene of tests/test_coupled.py), adaptive steps capped at
     dt_max = 2.5e-5 over 0.05 s, so at least 2000 accepted steps: energy ≤ initial (0, from rest) + work at
     every step, the ledger closed at every step (measured: monolithic at tol 1e-3 2 254 accepted steps,
-    the splitting at tol 1e-1 2 066; over 0.2 s with dt_max = 1e-4, monolithic took 3 262 steps, max
+    the splitting at tol 3e-1 2 159; over 0.2 s with dt_max = 1e-4, monolithic took 3 262 steps, max
     (E − W)/max|W| = −6e-25, residual ≤ 1.1e-12)."""
     code, summary, rows = run_cli(
         "pulse-koiter", tmp_path / "light",
