@@ -38,7 +38,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from multilayer.coupling.clock import Window, march
+from multilayer.coupling.clock import Window, march, old_levels
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
     coupled_case_problems,
@@ -158,19 +158,19 @@ class KinematicSplitting(Coupler):
 
         ``rate`` = V̄_Γ − v̄: A1 moves the lumen at V̄_Γ, the fluid's trace moves at v̄.
         Z, their difference integrated (``splitting.Z``), is the splitting's defect in η;
-        d − PZ is the wall as the fluid's trace integrates it.
+        η − Z is the lumen as the fluid's trace integrates it.
 
-        * ``estimate.wall.d``: the Crank–Nicolson estimate of d − PZ (rejects the step);
+        * ``estimate.wall.d``: the Crank–Nicolson estimate of η − Z on the lumen line (rejects the step);
         * ``estimate.next.wall.d``: Δt times the rate averaged over this step and the last,
           the splitting's local error in η without the (−1)ⁿ part of the rate that the last
           steps leave and that no Δt of this step reduces (sets the next step only).
         """
-        old = state.history(3)
-        zs = [s.extra.get("splitting.Z", np.zeros_like(rate)) for s in old]
-        z_new = zs[0] + w.dt * rate
+        z_new = state.extra.get("splitting.Z", np.zeros_like(rate)) + w.dt * rate
         out = {"splitting.Z": z_new, "splitting.rate": rate}
-        if old[-1].n != state.n - 2 or state.n < 2:
+        old = old_levels(state)
+        if old is None:
             return out
+        zs = [s.extra.get("splitting.Z", np.zeros_like(rate)) for s in old]
         k = [w.dt, old[0].t - old[1].t, old[1].t - old[2].t]
         out["estimate.wall.d"] = P @ local_error(R @ d_new - z_new, [R @ s.wall.d - z for s, z in zip(old, zs)], k)
         out["estimate.next.wall.d"] = P @ (w.dt * 0.5 * (rate + state.extra.get("splitting.rate", rate)))

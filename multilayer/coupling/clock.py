@@ -96,6 +96,13 @@ def fields(state: State) -> dict[str, np.ndarray]:
     return out
 
 
+def old_levels(state: State) -> list[State] | None:
+    """[state, the one before, the one before that]: the levels an estimate of the next step reads; None before
+    three exist (the first two steps of a run)."""
+    old = state.history(3)
+    return old if state.n >= 2 and old[-1].n == state.n - 2 else None
+
+
 def integrate(state: State, new: State) -> State:
     """``new`` with its fluid velocity integral X (0 at the start), by the trapezoidal rule over the step."""
     u_new, u_old = getattr(new.fluid, "u", None), getattr(state.fluid, "u", None)
@@ -157,8 +164,8 @@ class Adaptive:
         ``new.extra["estimate.next.<field>"]`` comes out as ``next.<field>``: an error
         that bounds the next step and does not reject this one.
         """
-        old = state.history(3)
-        if old[-1].n != state.n - 2 or state.n < 2:
+        old = old_levels(state)
+        if old is None:
             return None
         if "fluid.X" in new.extra and "fluid.X" not in old[-1].extra:  # the start: X⁰ = 0
             old[-1] = attrs.evolve(old[-1], extra={**old[-1].extra, "fluid.X": np.zeros_like(new.extra["fluid.X"])})
