@@ -27,7 +27,7 @@ the column ``dissipation.beta`` (a term of the scheme, of either sign, not
 work of a load: the energy bound E ≤ E⁰ + work counts loads only).
 
 With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
-:mod:`multilayer.coupling.clock`), its estimate times :data:`ERROR_CONSTANT`;
+:mod:`multilayer.coupling.clock`) with its own error estimate (:meth:`KinematicSplitting.estimate`);
 the wall is factorized again when Δt changes, τ̃ of ``extrapolation = 2``
 is extrapolated over the uneven steps.
 """
@@ -38,7 +38,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from multilayer.coupling.clock import Window, march
+from multilayer.coupling.clock import Window, march, old_levels
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
     coupled_case_problems,
@@ -54,6 +54,7 @@ from multilayer.coupling.kit import (
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.fluid.contract import Domain, Interface
+from multilayer.numerics.stepsize import local_error
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
@@ -64,12 +65,6 @@ SCHEMES = ("backward-euler", "crank-nicolson")
 #: why the splitting cannot take a fluid directly on a thick band
 THICK_LUMEN = ("its fluid step carries the thin layer's inertia ρ₁h/Δt as the Robin term on Γ, and with no thin "
               "mass there the splitting loses its added-mass stability")
-#: the Crank–Nicolson splitting's error over monolithic Crank–Nicolson's at the same Δt, which the estimate
-#: (a predictor against the splitting's own smooth solution) cannot see: its splitting error is smooth too.
-#: Measured with β = 1 on the quick-start pulse (24 × 4 cells, η at z = 1, 2, 3 cm, relative L∞ against
-#: monolithic CN at Δt = 2.5e-6): 56.2 % / 6.28 % = 8.9 at Δt = 2e-4, 15.7 % / 1.55 % = 10.1 at Δt = 1e-4
-#: (scripts/side_by_side.py; docs/accuracy.md, "Adaptive steps")
-ERROR_CONSTANT = 10.0
 
 
 class KinematicSplitting(Coupler):
@@ -149,10 +144,37 @@ class KinematicSplitting(Coupler):
             v_bar = S.average([v_new, state.v])  # ū on Γ, the thin layer's test-level velocity
             traction = robin @ v_bar - interface.rhs  # the fluid's force on the thin layer over the step
             report = self.report(setup, state, a, f, masses, v_new, v_bar, tau, dt)
+            extra = {"traction": traction}
+            if adaptive:
+                extra.update(self.estimate(state, w, a.wall.d, P, R, v_mean_a1 - v_bar))
             return state.then(S.old_levels, n=w.n + 1, t=w.t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
-                              extra={"traction": traction}), report
+                              extra=extra), report
 
-        return march(setup, self.scheme, state, advance, ERROR_CONSTANT)
+        return march(setup, self.scheme, state, advance)
+
+    @staticmethod
+    def estimate(state: State, w: Window, d_new: np.ndarray, P, R, rate: np.ndarray) -> dict[str, np.ndarray]:
+        """The splitting's own error estimate of the wall (theory §4, "The splitting's error"), as ``extra`` entries.
+
+        ``rate`` = V̄_Γ − v̄: A1 moves the lumen at V̄_Γ, the fluid's trace moves at v̄.
+        Z, their difference integrated (``splitting.Z``), is the splitting's defect in η;
+        η − Z is the lumen as the fluid's trace integrates it.
+
+        * ``estimate.wall.d``: the Crank–Nicolson estimate of η − Z on the lumen line (rejects the step);
+        * ``estimate.next.wall.d``: Δt times the rate averaged over this step and the last,
+          the splitting's local error in η without the (−1)ⁿ part of the rate that the last
+          steps leave and that no Δt of this step reduces (sets the next step only).
+        """
+        z_new = state.extra.get("splitting.Z", np.zeros_like(rate)) + w.dt * rate
+        out = {"splitting.Z": z_new, "splitting.rate": rate}
+        old = old_levels(state)
+        if old is None:
+            return out
+        zs = [s.extra.get("splitting.Z", np.zeros_like(rate)) for s in old]
+        k = [w.dt, old[0].t - old[1].t, old[1].t - old[2].t]
+        out["estimate.wall.d"] = P @ local_error(R @ d_new - z_new, [R @ s.wall.d - z for s, z in zip(old, zs)], k)
+        out["estimate.next.wall.d"] = P @ (w.dt * 0.5 * (rate + state.extra.get("splitting.rate", rate)))
+        return out
 
     def report(self, setup, state: State, a, f, masses, v_new, v_bar, tau, dt: float) -> StepReport:
         """The step's ledger: A1's identity and A2's, the thin layer's inertia resolved on its own side.

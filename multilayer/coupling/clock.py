@@ -13,8 +13,11 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   the wall displacement d and of the fluid velocity's time integral X
   (:func:`fields`: the velocities through their integrals), each in the max
   norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
-  the largest of them is the step's relative error e, times the coupler's
-  error constant (its error over Crank–Nicolson's: 10 for the splitting);
+  the largest of them is the step's relative error e.  A coupler whose error
+  the predictor does not see puts its own estimate of a field in the new
+  state's ``extra["estimate.<field>"]`` (used instead), and an error that
+  only bounds the next step in ``extra["estimate.next.<field>"]`` (the
+  kinematic splitting: theory §4, "The splitting's error");
 * e is asked per unit of elapsed time, over at most the memory time W
   (``time.memory``; by default the loads' shortest period, or ``time.end``
   when no load repeats): err = e · min(tⁿ⁺¹, W) / (kₙ · tol) ≤ 1, so a step
@@ -22,7 +25,8 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   W add up to about tol — on a periodic run the allowed local error stops
   shrinking after one period; without a period it is the run's relative error;
 * Gustafsson's PI controller (:class:`~multilayer.numerics.stepsize.Controller`)
-  proposes the next step; a step with err > 1 is rejected and retried
+  proposes the next step from the larger of err and the next-step errors;
+  a step with err > 1 is rejected and retried
   smaller; one that would go below ``time.dt_min`` stops the run
   (:class:`SchemeFailure`, every row so far kept);
 * the first two steps are ``time.dt`` (the estimate needs three old levels);
@@ -72,19 +76,14 @@ class Window:
 Advance = Callable[[State, Window], tuple[State, StepReport]]
 
 
-def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance,
-          error_constant: float = 1.0) -> Iterator[tuple[State, StepReport]]:
-    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance.
-
-    ``error_constant``: the coupler's local error over Crank–Nicolson's at the same Δt (1 for a scheme
-    that is Crank–Nicolson, like ``monolithic``): the estimate is multiplied by it.
-    """
+def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance) -> Iterator[tuple[State, StepReport]]:
+    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance."""
     if not setup.case.time.adaptive:
         for n, t0, t1 in setup.windows(state.n):
             state, report = advance(state, Window(n, t0, t1, setup.dt, scheme))
             yield state, report
         return
-    yield from Adaptive(setup, scheme, error_constant).march(state, advance)
+    yield from Adaptive(setup, scheme).march(state, advance)
 
 
 def fields(state: State) -> dict[str, np.ndarray]:
@@ -108,6 +107,13 @@ def fields(state: State) -> dict[str, np.ndarray]:
     return out
 
 
+def old_levels(state: State) -> list[State] | None:
+    """[state, the one before, the one before that]: the levels an estimate of the next step reads; None before
+    three exist (the first two steps of a run)."""
+    old = state.history(3)
+    return old if state.n >= 2 and old[-1].n == state.n - 2 else None
+
+
 def integrate(state: State, new: State, window: Window) -> State:
     """``new`` with its fluid velocity integral X (0 at the start), by the step's own rule Σα_k X^{n+1−k} = Δt ū
     (the trapezoidal rule for Crank–Nicolson, BDF2 for BDF2: X is to u what the wall's d is to V)."""
@@ -124,9 +130,8 @@ def integrate(state: State, new: State, window: Window) -> State:
 class Adaptive:
     """Steps chosen by error (module docstring)."""
 
-    def __init__(self, setup: Setup, scheme: TimeScheme, error_constant: float = 1.0):
+    def __init__(self, setup: Setup, scheme: TimeScheme):
         time = setup.case.time
-        self.error_constant = error_constant
         self.setup, self.scheme = setup, scheme
         self.tol, self.end, self.first = time.tolerance, time.end, time.dt
         self.lo, self.hi = time.smallest, time.dt_max if time.dt_max is not None else math.inf
@@ -174,23 +179,34 @@ class Adaptive:
         stats = [*self.setup.solvers.values(), *([self.setup.fluid.stats] if self.setup.fluid is not None else [])]
         return sum(st.factorizations for st in stats)
 
-    def error(self, state: State, new: State, dt: float, record: dict[str, float]) -> float | None:
-        """err of the step ``state`` → ``new`` (≤ 1: accept); None before three old levels exist."""
-        old = state.history(3)
-        if old[-1].n != state.n - 2 or state.n < 2:
+    def error(self, state: State, new: State, dt: float, record: dict[str, float]) -> dict[str, float] | None:
+        """err of the step ``state`` → ``new`` per field; None before three old levels exist.
+
+        A field's local error is the coupler's own estimate where it put one in
+        ``new.extra["estimate.<field>"]`` (the splitting's), else the Crank–Nicolson
+        estimate :func:`local_error` of the field.  What a coupler puts in
+        ``new.extra["estimate.next.<field>"]`` comes out as ``next.<field>``: an error
+        that bounds the next step and does not reject this one.
+        """
+        old = old_levels(state)
+        if old is None:
             return None
         if "fluid.X" in new.extra and "fluid.X" not in old[-1].extra:  # the start: X⁰ = 0
             old[-1] = attrs.evolve(old[-1], extra={**old[-1].extra, "fluid.X": np.zeros_like(new.extra["fluid.X"])})
         k = [dt, old[0].t - old[1].t, old[1].t - old[2].t]
         levels = [fields(s) for s in old]
-        worst = 0.0
+        out = {}
         for name, x in fields(new).items():
-            e = float(np.max(np.abs(local_error(x, [lv[name] for lv in levels], k, self.scheme.name))))
-            e *= carried(self.scheme.name, k)
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
-            if scale > 0.0:
-                worst = max(worst, e / scale)
-        return self.error_constant * worst * min(new.t, self.memory) / (dt * self.tol)
+            given = new.extra.get(f"estimate.{name}")
+            if given is None:
+                given = local_error(x, [lv[name] for lv in levels], k, self.scheme.name) * carried(self.scheme.name, k)
+            estimates = {name: given, f"next.{name}": new.extra.get(f"estimate.next.{name}")}
+            for key, e in estimates.items():
+                if e is not None:
+                    out[key] = (float(np.max(np.abs(e))) / scale * min(new.t, self.memory) / (dt * self.tol)
+                                if scale > 0.0 else 0.0)
+        return out
 
     def size(self, x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
         """A field's size at time t: max(|x|, min(t, W) |x − x_before|/Δt) in the max norm.
@@ -213,7 +229,10 @@ class Adaptive:
             if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
                                    or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
                 record["refactorizations"] += self.factorizations() - counted
-            err = self.error(state, new, window.dt, record)
+            errors = self.error(state, new, window.dt, record)
+            new = attrs.evolve(new, extra={k: v for k, v in new.extra.items() if not k.startswith("estimate.")})
+            err = None if errors is None else max((e for k, e in errors.items() if not k.startswith("next.")),
+                                                   default=0.0)
             if err is not None and err > 1.0:
                 record["rejected"] += 1
                 proposal = window.dt * self.controller.rejected(err)
@@ -225,14 +244,16 @@ class Adaptive:
                 record["dt"] = proposal
                 continue
             clipped = window.dt < min(record["dt"], self.hi)
-            factor = 1.0 if err is None else self.controller.accepted(err, record["err"])
+            ahead = max((e for k, e in (errors or {}).items() if k.startswith("next.")), default=0.0)
+            control = None if err is None else max(err, ahead)  # what sets the next step
+            factor = 1.0 if err is None else self.controller.accepted(control, record["err"])
             proposal = max(window.dt * factor, record["dt"]) if clipped else window.dt * factor
             if proposal < self.lo:  # the error asks for steps below dt_min from here on: no end of them
                 raise SchemeFailure(
-                    f"adaptive steps: after t = {new.t:.6g} s the error (err = {err:.3g} × time.tolerance) asks "
+                    f"adaptive steps: after t = {new.t:.6g} s the error (err = {control:.3g} × time.tolerance) asks "
                     f"for a step of {proposal:.3g} s < time.dt_min = {self.lo:.3g} s: loosen time.tolerance or "
                     f"lower time.dt_min (every step up to t = {state.t:.6g} s is kept)")
-            record.update(dt=min(proposal, self.hi), err=record["err"] if err is None else err,
+            record.update(dt=min(proposal, self.hi), err=record["err"] if err is None else control,
                           last=window.dt, accepted=record["accepted"] + 1,
                           smallest=min(record["smallest"] or window.dt, window.dt),
                           largest=max(record["largest"], window.dt))
@@ -243,7 +264,8 @@ class Adaptive:
             landed = float(new.t == self.output_time(state.t))
             state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
             yield state, attrs.evolve(report, diagnostics={
-                **report.diagnostics, "dt": window.dt, "error.local": 0.0 if err is None else err, "landed": landed})
+                **report.diagnostics, "dt": window.dt, "error.local": 0.0 if err is None else err, "landed": landed,
+                "error.next": ahead, **{f"error.{name}": (errors or {}).get(name, 0.0) for name in FIELDS}})
 
 
 def summary(record: dict[str, float] | None, case: Case) -> dict[str, object]:
