@@ -62,11 +62,17 @@ class Domain:
 
     ``eta`` is the wall displacement of the geometry the step is assembled
     on (J_m, ∇^η); ``velocity`` the wall velocity c that moves the domain
-    during the step (∂_t J = c/R, ALE velocity w = c r̂/R).
+    during the step (∂_t J = c/R, ALE velocity w = c r̂/R).  ``eta_z`` and
+    ``velocity_z``, when given, move it axially as well
+    (:meth:`multilayer_plugins.channel.ale.ALEFields.moving`).
     """
 
     eta: np.ndarray
     velocity: np.ndarray
+    #: the lumen's axial displacement and velocity under no-slip at a thick first layer (the domain then
+    #: moves axially too, by their harmonic extension); None under the radial map
+    eta_z: np.ndarray | None = None
+    velocity_z: np.ndarray | None = None
 
     @classmethod
     def still(cls, n: int) -> Domain:
@@ -177,8 +183,10 @@ class Fluid(ABC):
         """The solution of ``system`` from its test-level unknowns x̄ solved elsewhere."""
 
     @abstractmethod
-    def identity(self, system: Any, solution: Any, eta_old: np.ndarray, eta_new: np.ndarray) -> dict[str, float]:
-        """The step's energy terms (see :meth:`multilayer_plugins.channel.step.FluidStep.identity`)."""
+    def identity(self, system: Any, solution: Any, eta_old: np.ndarray, eta_new: np.ndarray,
+                 axial: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
+        """The step's energy terms (see :meth:`multilayer_plugins.channel.step.FluidStep.identity`); ``axial``
+        the lumen's d_z at tⁿ and tⁿ⁺¹ under an axial mesh motion."""
 
     @abstractmethod
     def reaction(self, system: Any, mean: np.ndarray) -> np.ndarray:

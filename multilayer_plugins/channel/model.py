@@ -173,8 +173,8 @@ class ChannelFluid(Fluid):
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
         return self.discrete.advance(system, mean)
 
-    def identity(self, system, solution, eta_old, eta_new) -> dict[str, float]:
-        return self.discrete.identity(system, solution, eta_old, eta_new)
+    def identity(self, system, solution, eta_old, eta_new, axial=None) -> dict[str, float]:
+        return self.discrete.identity(system, solution, eta_old, eta_new, axial)
 
     def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
         return self.discrete.reaction(system, mean)
