@@ -1,4 +1,4 @@
-"""A fluid directly on a thick band, no thin layer (issue 24): the radial gluing of theory §1.
+"""A fluid directly on a thick band, no thin layer (issue 24): the radial gluing of theory §1, and no-slip.
 
 The band's lumen line carries the fluid's wall: u = (0, ∂_t d_r) and d_z = 0
 there (``[coupler] lumen = "radial"``), the fluid's force on the band's
@@ -207,7 +207,35 @@ def test_the_splitting_refuses_a_thick_lumen_and_says_why(capsys):
 
 
 def test_the_lumen_key_is_validated(capsys):
-    code = main(["validate", str(CASES / "thick-wall.toml"), "--set", 'coupler.lumen="no-slip"'])
+    code = main(["validate", str(CASES / "thick-wall.toml"), "--set", 'coupler.lumen="slip"'])
     err = capsys.readouterr().err
     assert code == 2
-    assert "coupler.lumen = 'no-slip'" in err and "'radial'" in err
+    assert "coupler.lumen = 'slip'" in err and "'no-slip'" in err and "'radial'" in err
+
+
+NO_SLIP = {name: coupler[:-1] + ',lumen="no-slip"}' for name, coupler in COUPLERS.items()}
+
+
+@pytest.mark.parametrize("geometry", ["planar", "axisymmetric"])
+@pytest.mark.parametrize("coupler", NO_SLIP)
+def test_no_slip_ledger_closes_for_every_coupler_scheme_and_geometry(coupler, geometry, tmp_path):
+    """u = ∂_t d on the lumen in both components, the domain moved axially by the harmonic extension of d_z.
+    Measured (12 × 3 cells, 20 steps): ledgers ≤ 1.8e-12 relative; max |d_z| at z = 1 is 61–66 % of max η there
+    (planar), 106–117 % (tube): the band's lumen moves axially as much as radially under the pulse."""
+    code, summary, s = run(tmp_path / coupler, *COARSE, f"coupler={NO_SLIP[coupler]}",
+                           f"geometry.kind={geometry}")
+    assert code == 0 and summary["status"] == "ok" and summary["steps"] == 20
+    assert np.all(s["energy.relative_residual"] <= 1e-9)
+    assert np.max(np.abs(s["dz_z1"])) > 0.1 * np.max(np.abs(s["eta_z1"]))
+
+
+@pytest.mark.parametrize("geometry", ["planar", "axisymmetric"])
+def test_no_slip_implicit_dirichlet_neumann_agrees_with_monolithic(geometry, tmp_path):
+    """Dirichlet data in both components against shared DOFs in both.  Measured (tolerance 1e-11, ~15 IQN-ILS
+    iterations a step): η gap 1.8e-10 planar, 1.3e-9 in the tube; d_z gap 4.6e-12, 4.5e-12."""
+    sets = (*COARSE, f"geometry.kind={geometry}")
+    _, _, dn = run(tmp_path / "dn", *sets, f"coupler={NO_SLIP['dn-implicit-cn']}")
+    _, _, mono = run(tmp_path / "mono", *sets, f"coupler={NO_SLIP['monolithic-cn']}")
+    assert gap(dn, mono) < 1e-8
+    assert gap(dn, mono, ("dz_z1",)) < 1e-8
+    assert np.max(np.abs(dn["dissipation.interface"])) <= 1e-9 * np.max(np.abs(dn["work.inlet"]))

@@ -29,7 +29,8 @@ class FluidSetup:
     """What a fluid is discretized for: the geometry, the channel and its mesh, the wall mode, the ends.
 
     ``wall`` is how the fluid sees the wall: ``coupled`` (its u_r on the wall
-    is an unknown the coupler ties to the wall), ``rigid`` (u = 0, the domain
+    is an unknown the coupler ties to the wall), ``no-slip`` (its u_r and u_z
+    there are, for a fluid on a thick band), ``rigid`` (u = 0, the domain
     never moves) or ``prescribed`` (u_r given on the wall).  ``ends`` holds
     the condition of each open end (``inlet``, ``outlet``); an end left out
     is traction-free.  ``line`` is the interface line's space when the caller
@@ -130,6 +131,11 @@ class Fluid(ABC):
         """The unknown of the fluid's system that is the wall's u_r at each line DOF."""
 
     @property
+    def interface_z_dofs(self) -> np.ndarray:
+        """The unknown of the fluid's system that is the wall's u_z at each line DOF (no-slip at a thick band)."""
+        raise NotImplementedError(f"{type(self).__name__} has no wall u_z unknowns: it cannot take lumen = 'no-slip'")
+
+    @property
     @abstractmethod
     def stats(self) -> SolverStats:
         """Factorizations and solves of the fluid's own systems."""
@@ -171,8 +177,9 @@ class Fluid(ABC):
         """Solve ``system``; the result has ``state`` (the new state) and ``mean`` (the test-level x̄)."""
 
     @abstractmethod
-    def prescribe(self, system: Any, wall_velocity: np.ndarray) -> Any:
-        """``system`` with the wall's u_r prescribed to ``wall_velocity`` (a line vector; prescribed mode).
+    def prescribe(self, system: Any, wall_velocity: np.ndarray, wall_velocity_z: np.ndarray | None = None) -> Any:
+        """``system`` with the wall's u_r prescribed to ``wall_velocity`` (a line vector; prescribed mode), and
+        its u_z to ``wall_velocity_z`` under no-slip at a thick band.
 
         Only the Dirichlet data change: a Dirichlet–Neumann coupler iterates on
         it without refactorizing.
@@ -189,8 +196,9 @@ class Fluid(ABC):
         the lumen's d_z at tⁿ and tⁿ⁺¹ under an axial mesh motion."""
 
     @abstractmethod
-    def reaction(self, system: Any, mean: np.ndarray) -> np.ndarray:
-        """The fluid's residual on the wall's u_r rows as a line vector: minus its force on the wall."""
+    def reaction(self, system: Any, mean: np.ndarray, axial: bool = False) -> np.ndarray:
+        """The fluid's residual on the wall's u_r rows (its u_z rows if ``axial``) as a line vector: minus its
+        force on the wall."""
 
     def step(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
              times: tuple[float, float], interface: Interface | None = None, eta_old: np.ndarray | None = None,

@@ -110,6 +110,10 @@ class ChannelFluid(Fluid):
         return self.discrete.interface_dofs
 
     @property
+    def interface_z_dofs(self) -> np.ndarray:
+        return self.discrete.interface_z_dofs
+
+    @property
     def stats(self) -> SolverStats:
         return self.discrete.stats
 
@@ -167,8 +171,9 @@ class ChannelFluid(Fluid):
     def solve(self, system: FluidSystem) -> Solution:
         return self.discrete.solve(system)
 
-    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
-        return self.discrete.prescribe(system, wall_velocity)
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray,
+                  wall_velocity_z: np.ndarray | None = None) -> FluidSystem:
+        return self.discrete.prescribe(system, wall_velocity, wall_velocity_z)
 
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
         return self.discrete.advance(system, mean)
@@ -176,8 +181,8 @@ class ChannelFluid(Fluid):
     def identity(self, system, solution, eta_old, eta_new, axial=None) -> dict[str, float]:
         return self.discrete.identity(system, solution, eta_old, eta_new, axial)
 
-    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
-        return self.discrete.reaction(system, mean)
+    def reaction(self, system: FluidSystem, mean: np.ndarray, axial: bool = False) -> np.ndarray:
+        return self.discrete.reaction(system, mean, axial)
 
     def wall_velocity(self, state: FluidState) -> np.ndarray:
         return state.v

@@ -27,6 +27,9 @@ Wall modes:
 
 ``coupled``
     the wall's u_r DOFs are unknowns (ū_r = v̄ on Γ);
+``no-slip``
+    the wall's u_r and u_z DOFs are unknowns, but u_z at Γ's corners (a
+    fluid on a thick band: a monolithic coupler adds the band's d_z rows);
 ``rigid``
     u = 0 on the wall and the domain never moves;
 ``prescribed``
@@ -68,7 +71,7 @@ from multilayer_plugins.channel.ends import Ends
 from multilayer_plugins.channel.extension import AxialExtension
 from multilayer_plugins.channel.ledger import Quadrature
 
-WALL_MODES = ("coupled", "rigid", "prescribed")
+WALL_MODES = ("coupled", "no-slip", "rigid", "prescribed")
 
 
 @attrs.frozen(eq=False)
@@ -173,7 +176,7 @@ class FluidStep:
         self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
         self.ends = Ends(channel, ends or {})
-        if wall != "coupled" and len(self.ends.multipliers) == len(ENDS):
+        if wall in ("rigid", "prescribed") and len(self.ends.multipliers) == len(ENDS):
             # the incompressibility dilemma: a fluid whose wall it does not move has no volume to give
             raise ValueError(f"a flow rate at both ends of a fluid on a {wall} wall fixes its volume balance twice "
                              f"and leaves the level of the pressure free: prescribe a pressure at one end")
@@ -183,15 +186,15 @@ class FluidStep:
         # the data array of a step: velocity block, divergence rows, and their negated transpose
         self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
                                           self.pattern.slots(*pu[::-1])], scales=[1.0, 1.0, -1.0])
+        self._extension: AxialExtension | None = None  # built at the first axially moving domain
         #: the velocity DOF of each line DOF: where the wall's u_r sits
         self.interface_dofs = prolongation_dofs(channel.prolongation)
         #: the velocity DOF of the wall's u_z at each line DOF (the same node's other component)
         comp_z, comp_r = channel.velocity.split_indices()
         self.interface_z_dofs = comp_z[np.searchsorted(comp_r, self.interface_dofs)]
-        self._extension: AxialExtension | None = None  # built at the first axially moving domain
-
-        fixed = [channel.normal_r, channel.wall_z]
-        if wall != "coupled":
+        fixed = [channel.normal_r,
+                 self.interface_z_dofs[list(channel.ends)] if wall == "no-slip" else channel.wall_z]
+        if wall in ("rigid", "prescribed"):
             fixed.append(channel.wall_r)
         self.fixed = np.unique(np.concatenate(fixed))
         self.free = np.setdiff1d(np.arange(n), self.fixed)
@@ -408,8 +411,10 @@ class FluidStep:
         """The latest changing matrix solved (free DOFs), None before the first or for a constant matrix."""
         return self._solver.last
 
-    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
-        """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode).
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray,
+                  wall_velocity_z: np.ndarray | None = None) -> FluidSystem:
+        """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode), and its ū_z
+        to ``wall_velocity_z`` when given (no-slip).
 
         The matrix is shared, so :meth:`solve` reuses its factorization: a
         sub-iterated coupler pays one factorization per step.
@@ -420,6 +425,9 @@ class FluidStep:
         values = np.zeros(self.ndofs)
         values[: self.channel.nu] = self.channel.prolongation @ wall_velocity
         values[self.channel.normal_r] = 0.0
+        if wall_velocity_z is not None:
+            self._check_ends(wall_velocity_z)
+            values[self.interface_z_dofs] = wall_velocity_z
         return attrs.evolve(system, fixed_values=values[self.fixed])
 
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
@@ -433,13 +441,15 @@ class FluidStep:
         state = FluidState(u, mean[nu:self.channel.ndofs].copy(), self.channel.wall_trace(u), ends)
         return Solution(mean, state)
 
-    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
-        """The fluid's own residual A x̄ − b on the wall's u_r rows, as a line vector.
+    def reaction(self, system: FluidSystem, mean: np.ndarray, axial: bool = False) -> np.ndarray:
+        """The fluid's own residual A x̄ − b on the wall's u_r rows (u_z rows if ``axial``), as a line vector.
 
         It is minus the force the fluid exerts on the wall over the step,
         tested with each line basis function (dyn/cm per unit depth).
         """
         residual = self.pattern.matrix(system.own) @ mean - system.own_rhs
+        if axial:
+            return residual[self.interface_z_dofs]
         return self.channel.restriction @ residual[: self.channel.nu]
 
     # -- the energy identity ----------------------------------------------------
