@@ -73,7 +73,7 @@ class DirichletNeumann(ThickLumen, Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state),
-                **setup.fluid.energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta, state.extra.get("eta_z"))}
 
     def accelerator(self):
         """The update of the interface velocity between iterations (implicit only)."""
@@ -154,7 +154,7 @@ class DirichletNeumannImplicit(DirichletNeumann):
     implicit = True
 
     def __init__(self, scheme: str = "backward-euler", acceleration: str = "iqn-ils", tolerance: float = 1e-8,
-                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8, lumen: str = "radial"):
+                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8, lumen: str = "no-slip"):
         super().__init__(scheme, lumen)
         if acceleration not in ACCELERATIONS:
             raise ValueError(f"acceleration {acceleration!r} is not one of {', '.join(ACCELERATIONS)}")

@@ -69,7 +69,7 @@ class Monolithic(ThickLumen, Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state),
-                **setup.fluid.energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta, state.extra.get("eta_z"))}
 
     def numbering(self, setup) -> np.ndarray:
         """The unknown of the monolithic system of each wall DOF.

@@ -26,9 +26,9 @@ AXIAL = ("eta_z", "v_z")
 
 def lumen_param():
     """The ``lumen`` parameter of a coupler that takes a fluid directly on a thick band."""
-    return Param("lumen", type=str, default="radial", choices=LUMEN_CONDITIONS,
-                 doc="a thick first layer at the fluid: 'no-slip' glues both components, u = ∂_t d on the lumen, "
-                     "and the fluid domain follows its axial motion too; 'radial' glues only its radial motion, "
+    return Param("lumen", type=str, default="no-slip", choices=LUMEN_CONDITIONS,
+                 doc="a thick first layer at the fluid: 'no-slip' (the default) glues both components, u = ∂_t d "
+                     "on the lumen, and the fluid domain follows its axial motion too; 'radial' glues only its radial motion, "
                      "u = (0, ∂_t d_r) and d_z = 0 on the lumen (the seed's radial ALE map); ignored under a thin "
                      "first layer")
 
@@ -66,7 +66,7 @@ class ThickLumen:
     domain axially (:func:`predicted_domain`).
     """
 
-    def __init__(self, scheme: str = "backward-euler", lumen: str = "radial"):
+    def __init__(self, scheme: str = "backward-euler", lumen: str = "no-slip"):
         super().__init__(scheme)
         if lumen not in LUMEN_CONDITIONS:
             raise ValueError(f"lumen {lumen!r} is not one of {', '.join(LUMEN_CONDITIONS)}")

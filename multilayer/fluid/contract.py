@@ -219,12 +219,14 @@ class Fluid(ABC):
         """The wall's u_r of ``state`` as a line vector."""
 
     @abstractmethod
-    def energy(self, state: Any, eta: np.ndarray | None = None) -> dict[str, float]:
-        """The fluid's stored energy by ledger column: ``kinetic.fluid`` and what its ends' conditions store."""
+    def energy(self, state: Any, eta: np.ndarray | None = None,
+               eta_z: np.ndarray | None = None) -> dict[str, float]:
+        """The fluid's stored energy by ledger column: ``kinetic.fluid`` and what its ends' conditions store
+        (``eta_z``: the lumen's d_z of an axially moved domain)."""
 
     @abstractmethod
-    def kinetic_energy(self, state: Any, eta: np.ndarray | None = None) -> float:
-        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+    def kinetic_energy(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta`` (and ``eta_z``)."""
 
     @abstractmethod
     def flow_rate(self, state: Any, eta: np.ndarray | None, z: float) -> float:

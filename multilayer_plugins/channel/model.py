@@ -19,7 +19,7 @@ from multilayer.geometry.spaces import LineSpace
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.plugin.records import Param
 from multilayer_plugins.channel import probes
-from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.ale import ALEFields, deformation, volume_element
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ledger import fluid_kinetic
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
@@ -187,14 +187,19 @@ class ChannelFluid(Fluid):
     def wall_velocity(self, state: FluidState) -> np.ndarray:
         return state.v
 
-    def energy(self, state: FluidState, eta: np.ndarray | None = None) -> dict[str, float]:
+    def energy(self, state: FluidState, eta: np.ndarray | None = None,
+               eta_z: np.ndarray | None = None) -> dict[str, float]:
         """``kinetic.fluid`` and what the ends' conditions store (a Windkessel's capacitor), by ledger column."""
-        return {"kinetic.fluid": self.kinetic_energy(state, eta), **self.discrete.ends.energy(state.ends)}
+        return {"kinetic.fluid": self.kinetic_energy(state, eta, eta_z), **self.discrete.ends.energy(state.ends)}
 
-    def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
-        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+    def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None,
+                       eta_z: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta`` (moved axially by ``eta_z`` when given)."""
         ch = self.channel
         eta = self._eta(eta)
+        if eta_z is not None:
+            J = volume_element(ch, deformation(ch, self.discrete.extension, eta, eta_z))
+            return fluid_kinetic(ch, self.density, J, state.u)
         fields = ALEFields.at(ch, eta, np.zeros_like(eta))
         return fluid_kinetic(ch, self.density, fields.J, state.u)
 
