@@ -154,6 +154,22 @@ def test_crank_nicolson_on_the_midpoint_domain_closes_its_identity_and_mass_bala
         assert rec["q"] == pytest.approx(wall_flux(fluid, *rec["mid"], v, v_z), rel=1e-11, abs=1e-11 * scale)
 
 
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_snapshot_places_the_vertices_by_the_axial_map(order):
+    fluid = Stokes(RHO, MU)
+    setup_fluid(fluid, L, R, nz=6, nr=3, order=order, wall="prescribed")
+    eta, d_z = lumen_law(0.3 * T0, fluid.line.z)
+    points, _, data = fluid.snapshot(fluid.initial_state(), eta, d_z)
+    mesh = fluid.channel.mesh
+    lumen = np.flatnonzero(np.abs(mesh.p[1] - R) < 1e-12)
+    ends = np.flatnonzero((mesh.p[0] < 1e-12) | (mesh.p[0] > L - 1e-12))
+    expected = lumen_law(0.3 * T0, mesh.p[0, lumen])
+    assert np.allclose(points[lumen, 0], mesh.p[0, lumen] + expected[1], rtol=0, atol=1e-15)
+    assert np.allclose(points[lumen, 1], R + expected[0], rtol=0, atol=1e-15)
+    assert np.all(data["displacement"][ends, 0] == 0.0)
+    assert np.abs(data["displacement"][:, 0]).max() > 0.5 * B
+
+
 def test_an_axial_displacement_at_the_ends_is_refused():
     fluid = Stokes(RHO, MU)
     setup_fluid(fluid, L, R, nz=4, nr=2, order=2, wall="prescribed")

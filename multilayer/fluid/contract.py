@@ -249,5 +249,6 @@ class Fluid(ABC):
         """Pressure at physical points."""
 
     @abstractmethod
-    def snapshot(self, state: Any, eta: np.ndarray | None = None) -> tuple:
-        """(points (n, 2) in the deformed channel, triangles, point data)."""
+    def snapshot(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> tuple:
+        """(points (n, 2) in the deformed channel, triangles, point data); ``eta_z`` the lumen's d_z of an
+        axially moved domain."""

@@ -226,7 +226,7 @@ class Setup:
         The points are already where the fluid is, so no displacement field is
         written (Warp By Vector would move the channel twice).
         """
-        pts, tri, data = self.fluid.snapshot(state.fluid, state.eta)
+        pts, tri, data = self.fluid.snapshot(state.fluid, state.eta, state.extra.get("eta_z"))
         return _xyz(pts), {"triangle": tri}, self._measured(pts, {k: _xyz(v) if np.ndim(v) == 2 else v
                                                                  for k, v in data.items() if k != "displacement"})
 

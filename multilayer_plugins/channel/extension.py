@@ -75,6 +75,7 @@ class AxialExtension:
         if np.max(np.abs(line_z[self.wall_line] - z[self.wall])) > tol:
             raise ValueError("the interface line's DOFs are not the scalar space's DOFs on r̂ = R")
         fixed = np.flatnonzero(on_wall | on_ends)
+        self._ends = np.flatnonzero(on_ends)  # Γ's corners among them: D_z = 0 there
         self.interior = np.setdiff1d(np.arange(basis.N), fixed)
         self._fixed = fixed
         self._coupling = A[self.interior][:, fixed].tocsr()
@@ -91,8 +92,13 @@ class AxialExtension:
                              f"is fixed), got d_z = {d_z[ends[0]]:.3g}, {d_z[ends[1]]:.3g} cm there")
         D = np.zeros(self.basis.N)
         D[self.wall] = d_z[self.wall_line]
+        D[self._ends] = 0.0
         D[self.interior] = -self._lu.solve(self._coupling @ D[self._fixed])
         return D
+
+    def at_vertices(self, d_z: np.ndarray) -> np.ndarray:
+        """D_z at the mesh vertices (in the mesh's vertex order)."""
+        return self.extend(d_z)[self.basis.nodal_dofs[0]]
 
     def at_quad(self, d_z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(D_z, ∂_ẑ D_z, ∂_r̂ D_z) at the quadrature points, each of the channel's ``quad_shape``."""

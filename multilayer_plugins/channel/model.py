@@ -225,9 +225,11 @@ class ChannelFluid(Fluid):
         """Pressure at physical points (dyn/cm²)."""
         return probes.pressure(self.channel, state.p, self._eta(eta), z, r)
 
-    def snapshot(self, state: FluidState, eta: np.ndarray | None = None):
-        """(points, triangles, point_data) in the deformed geometry; see :func:`probes.snapshot`."""
-        return probes.snapshot(self.channel, state.u, state.p, self._eta(eta))
+    def snapshot(self, state: FluidState, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None):
+        """(points, triangles, point_data) in the deformed geometry, moved axially by the harmonic extension of
+        ``eta_z`` when given; see :func:`probes.snapshot`."""
+        axial = None if eta_z is None else self.discrete.extension.at_vertices(eta_z)
+        return probes.snapshot(self.channel, state.u, state.p, self._eta(eta), axial)
 
     def _eta(self, eta: np.ndarray | None) -> np.ndarray:
         return np.zeros(self.line.ndofs) if eta is None else eta

@@ -95,17 +95,19 @@ def reference_point_sampler(channel: Channel, quantity: str, z: float, rhat: flo
     return lambda u, p: float((row @ u)[0])
 
 
-def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray,
+             axial: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(points, triangles, point_data) of the mesh vertices in the physical geometry.
 
     ``points`` is (n, 2) in (z, r); ``point_data`` holds ``velocity`` (n, 2),
     ``pressure`` (n,) and ``displacement`` (n, 2), the ALE displacement
-    (0, η r̂/R) that moves a vertex of Ω̂ to its place.
+    (D_z, η r̂/R) that moves a vertex of Ω̂ to its place: D_z = ``axial`` at the
+    vertices under an axial mesh motion, 0 otherwise.
     """
     mesh = channel.mesh
     zhat, rhat = mesh.p
     eta_v = wall_displacement(channel, eta, zhat)
-    displacement = np.vstack([np.zeros_like(zhat), eta_v * rhat / channel.radius])
+    displacement = np.vstack([np.zeros_like(zhat) if axial is None else axial, eta_v * rhat / channel.radius])
     vertex_u = channel.velocity.nodal_dofs  # (2 components, vertices)
     vel = u[vertex_u]
     pres = p[channel.pressure.nodal_dofs[0]]
