@@ -170,6 +170,35 @@ def test_the_snapshot_places_the_vertices_by_the_axial_map(order):
     assert np.abs(data["displacement"][:, 0]).max() > 0.5 * B
 
 
+@pytest.mark.parametrize("geometry", GEOMETRIES)
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_flow_rate_crosses_the_section_the_axial_map_moved(geometry, order):
+    """Through any curve from the axis to the lumen, u = e_z carries W(R + η(z)) (r planar, πr² in a tube), and
+    in the planar channel u = e_r carries −(D_z(z, R) − D_z(z, 0)) = D_z(z, 0) − d_z(z): the section's tilt."""
+    fluid = Stokes(RHO, MU)
+    setup_fluid(fluid, L, R, nz=6, nr=3, order=order, wall="prescribed", geometry=GEOMETRIES[geometry])
+    eta, d_z = lumen_law(0.3 * T0, fluid.line.z)
+    state = fluid.initial_state(lambda z, r: (np.ones_like(z), np.zeros_like(z)))
+    tube = fluid.channel.geometry.radial_power
+
+    def on_line(x, z):  # a line vector's value at z
+        return float((fluid.line.basis.probes(np.array([[z]])) @ x)[0])
+
+    for z in (0.4, 1.1, 1.5):
+        e = on_line(eta, z)
+        area = np.pi * (R + e) ** 2 if tube else R + e
+        assert fluid.flow_rate(state, eta, z, d_z) == pytest.approx(area, rel=1e-13)
+        probe = fluid.probe("flow_rate", z)
+        assert probe(state, eta, d_z) == fluid.flow_rate(state, eta, z, d_z)
+    if not tube:
+        radial = fluid.initial_state(lambda z, r: (np.zeros_like(z), np.ones_like(z)))
+        ext = fluid.discrete.extension
+        for z in (0.4, 1.1):
+            axis = float((ext.basis.probes(np.array([[z], [0.0]])) @ ext.extend(d_z))[0])
+            expected = axis - on_line(d_z, z)
+            assert fluid.flow_rate(radial, eta, z, d_z) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
 def test_an_axial_displacement_at_the_ends_is_refused():
     fluid = Stokes(RHO, MU)
     setup_fluid(fluid, L, R, nz=4, nr=2, order=2, wall="prescribed")

@@ -229,12 +229,13 @@ class Fluid(ABC):
         """½ρ_f ∫ J|u|² on the domain of ``eta`` (and ``eta_z``)."""
 
     @abstractmethod
-    def flow_rate(self, state: Any, eta: np.ndarray | None, z: float) -> float:
-        """Volume flux through the section at z (cm²/s)."""
+    def flow_rate(self, state: Any, eta: np.ndarray | None, z: float, eta_z: np.ndarray | None = None) -> float:
+        """Volume flux through the section at z (cm²/s) (the section moved by the lumen's ``eta_z`` when given)."""
 
     @abstractmethod
     def probe(self, quantity: str, z: float, rhat: float | None = None) -> Any:
-        """A function (state, η) → float for a probe, built once per run.
+        """A function (state, η) → float for a probe, built once per run; called (state, η, η_z) when the
+        domain moves axially (the lumen's d_z, no-slip at a thick band).
 
         ``u_z``, ``u_r``, ``p`` at the reference point (z, r̂) of the ALE map
         (it moves with the channel), or ``flow_rate`` through the section z.

@@ -182,7 +182,8 @@ class Setup:
         out = {}
         for name, (kind, line, ev) in rows.items():
             if kind == "fluid":
-                out[name] = ev(state.fluid, state.eta)
+                eta_z = state.extra.get("eta_z")  # an axially moving domain's (no-slip at a thick band)
+                out[name] = ev(state.fluid, state.eta) if eta_z is None else ev(state.fluid, state.eta, eta_z)
                 continue
             if kind == "d":
                 vec = state.wall.d

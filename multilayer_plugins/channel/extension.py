@@ -96,6 +96,17 @@ class AxialExtension:
         D[self.interior] = -self._lu.solve(self._coupling @ D[self._fixed])
         return D
 
+    def radial_slope_probes(self, x: np.ndarray) -> sp.csr_matrix:
+        """The matrix of D_z's DOFs → ∂_r̂ D_z at the reference points ``x`` (2 × n), each inside a cell."""
+        basis = self.basis
+        cells = basis.mesh.element_finder(mapping=basis.mapping)(*x)
+        local = basis.mapping.invF(x[:, :, np.newaxis], tind=cells)
+        slopes = [np.asarray(basis.elem.gbasis(basis.mapping, local, k, tind=cells)[0].grad[1]).ravel()
+                  for k in range(basis.Nbfun)]
+        rows = np.tile(np.arange(x.shape[1]), basis.Nbfun)
+        cols = basis.element_dofs[:, cells].ravel()
+        return sp.csr_matrix((np.concatenate(slopes), (rows, cols)), shape=(x.shape[1], basis.N))
+
     def at_vertices(self, d_z: np.ndarray) -> np.ndarray:
         """D_z at the mesh vertices (in the mesh's vertex order)."""
         return self.extend(d_z)[self.basis.nodal_dofs[0]]

@@ -203,19 +203,29 @@ class ChannelFluid(Fluid):
         fields = ALEFields.at(ch, eta, np.zeros_like(eta))
         return fluid_kinetic(ch, self.density, fields.J, state.u)
 
-    def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float) -> float:
-        """Volume flux through the section at z (cm²/s)."""
-        return probes.flow_rate(self.channel, state.u, self._eta(eta), z)
+    def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float, eta_z: np.ndarray | None = None) -> float:
+        """Volume flux through the section at z (cm²/s), moved axially by ``eta_z`` when given."""
+        axial = None if eta_z is None else (self.discrete.extension, eta_z)
+        return probes.flow_rate(self.channel, state.u, self._eta(eta), z, axial)
 
     def probe(self, quantity: str, z: float, rhat: float | None = None):
         """A function (state, η) → value for ``quantity`` (``u_z``, ``u_r``, ``p`` at the
         reference point (z, r̂), or ``flow_rate`` through the section z), built once."""
         ch = self.channel
         if quantity == "flow_rate":
-            sample = probes.flow_rate_sampler(ch, z)
-            return lambda state, eta: sample(state.u, self._eta(eta))
+            radial = probes.flow_rate_sampler(ch, z)
+            axial = []  # built at the first call with the lumen's d_z (no-slip at a thick band)
+
+            def flow_rate(state, eta, eta_z=None):
+                if eta_z is None:
+                    return radial(state.u, self._eta(eta))
+                if not axial:
+                    axial.append(probes.flow_rate_sampler(ch, z, self.discrete.extension))
+                return axial[0](state.u, self._eta(eta), eta_z)
+
+            return flow_rate
         point = probes.reference_point_sampler(ch, quantity, z, rhat)
-        return lambda state, eta: point(state.u, state.p)
+        return lambda state, eta, eta_z=None: point(state.u, state.p)
 
     def velocity(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
         """(u_z, u_r) at physical points, a (2, n) array (cm/s)."""

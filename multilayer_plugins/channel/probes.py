@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.extension import AxialExtension
 
 
 def wall_displacement(channel: Channel, eta: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -50,8 +51,8 @@ def section_nodes(channel: Channel, z: float) -> np.ndarray:
     return np.unique(np.concatenate([[0.0, channel.radius], r]))
 
 
-def flow_rate_sampler(channel: Channel, z: float):
-    """Q(z) as a function of (u, η), its sampling built once.
+def flow_rate_sampler(channel: Channel, z: float, extension: AxialExtension | None = None):
+    """Q(z) as a function of (u, η) (and the lumen's d_z with an ``extension``), its sampling built once.
 
     Q(z) = ∫₀^{R+η(z)} u_z weight(r) dr = J(z)^{1+k} ∫₀^R u_z(z, r̂) weight(r̂) dr̂ in the
     geometry's measure weight(r) = c rᵏ (cm²/s per unit depth in the planar
@@ -59,6 +60,11 @@ def flow_rate_sampler(channel: Channel, z: float):
     Gauss–Legendre with three points between consecutive crossings of mesh
     edges integrates P2 and P1b velocities exactly.  Neither the points nor
     the weights depend on η, so only J(z) changes with the wall.
+
+    Under an axial mesh motion the section ẑ = z is the curve moved by D, its
+    normal times length cof(F) e_ẑ dr̂ = (J, −∂_r̂D_z) dr̂: the sampler called
+    with d_z adds −Jᵏ ∫ u_r ∂_r̂D_z weight(r̂) dr̂ (degree ≤ 4 along the
+    section: exact with the same points).
     """
     nodes = section_nodes(channel, z)
     g, wg = np.polynomial.legendre.leggauss(3)
@@ -69,16 +75,28 @@ def flow_rate_sampler(channel: Channel, z: float):
     row = weights @ channel.velocity.probes(x).tocsr()[: len(rhat)]  # the u_z rows
     eta_row = channel.line.basis.probes(np.array([[z]])).tocsr()
     R = channel.radius
+    tilt = None
+    if extension is not None:  # the u_r rows at the points, and ∂_r̂D_z there
+        u_r = channel.velocity.probes(x).tocsr()[len(rhat):]
+        tilt = (u_r, extension.radial_slope_probes(x), weights)
 
-    def sample(u: np.ndarray, eta: np.ndarray) -> float:
-        return channel.geometry.stretch(1.0 + float((eta_row @ eta)[0]) / R) * float(row @ u)
+    def sample(u: np.ndarray, eta: np.ndarray, d_z: np.ndarray | None = None) -> float:
+        J = 1.0 + float((eta_row @ eta)[0]) / R
+        q = channel.geometry.stretch(J) * float(row @ u)
+        if d_z is None:
+            return q
+        u_r, slope, w = tilt
+        return q - J ** channel.geometry.radial_power * float(w @ ((u_r @ u) * (slope @ extension.extend(d_z))))
 
     return sample
 
 
-def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float) -> float:
-    """Q(z) (cm²/s); see :func:`flow_rate_sampler`."""
-    return flow_rate_sampler(channel, z)(u, eta)
+def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float,
+              axial: tuple[AxialExtension, np.ndarray] | None = None) -> float:
+    """Q(z) (cm²/s); see :func:`flow_rate_sampler` (``axial``: the extension and the lumen's d_z)."""
+    if axial is None:
+        return flow_rate_sampler(channel, z)(u, eta)
+    return flow_rate_sampler(channel, z, axial[0])(u, eta, axial[1])
 
 
 def reference_point_sampler(channel: Channel, quantity: str, z: float, rhat: float):
