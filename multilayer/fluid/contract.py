@@ -242,12 +242,12 @@ class Fluid(ABC):
         """
 
     @abstractmethod
-    def velocity(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """(u_z, u_r) at physical points, a (2, n) array."""
+    def velocity(self, state: Any, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array (of the domain moved axially by ``eta_z`` when given)."""
 
     @abstractmethod
-    def pressure(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """Pressure at physical points."""
+    def pressure(self, state: Any, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """Pressure at physical points (of the domain moved axially by ``eta_z`` when given)."""
 
     @abstractmethod
     def snapshot(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> tuple:

@@ -205,8 +205,7 @@ class ChannelFluid(Fluid):
 
     def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float, eta_z: np.ndarray | None = None) -> float:
         """Volume flux through the section at z (cm²/s), moved axially by ``eta_z`` when given."""
-        axial = None if eta_z is None else (self.discrete.extension, eta_z)
-        return probes.flow_rate(self.channel, state.u, self._eta(eta), z, axial)
+        return probes.flow_rate(self.channel, state.u, self._eta(eta), z, self._axial(eta_z))
 
     def probe(self, quantity: str, z: float, rhat: float | None = None):
         """A function (state, η) → value for ``quantity`` (``u_z``, ``u_r``, ``p`` at the
@@ -227,13 +226,13 @@ class ChannelFluid(Fluid):
         point = probes.reference_point_sampler(ch, quantity, z, rhat)
         return lambda state, eta, eta_z=None: point(state.u, state.p)
 
-    def velocity(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """(u_z, u_r) at physical points, a (2, n) array (cm/s)."""
-        return probes.velocity(self.channel, state.u, self._eta(eta), z, r)
+    def velocity(self, state: FluidState, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array (cm/s); the domain moved axially by ``eta_z`` when given."""
+        return probes.velocity(self.channel, state.u, self._eta(eta), z, r, self._axial(eta_z))
 
-    def pressure(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """Pressure at physical points (dyn/cm²)."""
-        return probes.pressure(self.channel, state.p, self._eta(eta), z, r)
+    def pressure(self, state: FluidState, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """Pressure at physical points (dyn/cm²); the domain moved axially by ``eta_z`` when given."""
+        return probes.pressure(self.channel, state.p, self._eta(eta), z, r, self._axial(eta_z))
 
     def snapshot(self, state: FluidState, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None):
         """(points, triangles, point_data) in the deformed geometry, moved axially by the harmonic extension of
@@ -243,6 +242,10 @@ class ChannelFluid(Fluid):
 
     def _eta(self, eta: np.ndarray | None) -> np.ndarray:
         return np.zeros(self.line.ndofs) if eta is None else eta
+
+    def _axial(self, eta_z: np.ndarray | None):
+        """(the extension, d_z) of an axially moved domain, None for the radial map."""
+        return None if eta_z is None else (self.discrete.extension, eta_z)
 
 
 class NavierStokes(ChannelFluid):

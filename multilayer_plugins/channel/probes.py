@@ -20,23 +20,42 @@ def wall_displacement(channel: Channel, eta: np.ndarray, z: np.ndarray) -> np.nd
     return channel.line.basis.probes(z[None, :]) @ eta
 
 
-def to_reference(channel: Channel, eta: np.ndarray, z, r) -> np.ndarray:
-    """Reference points (ẑ, r̂) of physical points (z, r): a (2, n) array."""
+def to_reference(channel: Channel, eta: np.ndarray, z, r,
+                 axial: tuple[AxialExtension, np.ndarray] | None = None) -> np.ndarray:
+    """Reference points (ẑ, r̂) of physical points (z, r): a (2, n) array.
+
+    Under an axial mesh motion (``axial`` = the extension and the lumen's d_z)
+    ẑ solves ẑ + D_z(ẑ, r̂) = z by fixed-point iteration (a contraction while
+    |∂_ẑD_z| < 1, which a map that does not fold has), r̂ = R r/(R + η(ẑ)).
+    """
     z = np.atleast_1d(np.asarray(z, dtype=float))
     r = np.broadcast_to(np.asarray(r, dtype=float), z.shape)
     R = channel.radius
-    return np.vstack([z, R * r / (R + wall_displacement(channel, eta, z))])
+    if axial is None:
+        return np.vstack([z, R * r / (R + wall_displacement(channel, eta, z))])
+    extension, d_z = axial
+    D = extension.extend(d_z)
+    zhat = z.copy()
+    for _ in range(100):
+        x = np.vstack([zhat, R * r / (R + wall_displacement(channel, eta, zhat))])
+        moved = np.clip(z - extension.basis.probes(x) @ D, 0.0, channel.length)
+        if np.max(np.abs(moved - zhat)) <= 4 * np.finfo(float).eps * channel.length:
+            break
+        zhat = moved
+    return np.vstack([moved, R * r / (R + wall_displacement(channel, eta, moved))])
 
 
-def velocity(channel: Channel, u: np.ndarray, eta: np.ndarray, z, r) -> np.ndarray:
-    """(u_z, u_r) at physical points: a (2, n) array (cm/s)."""
-    x = to_reference(channel, eta, z, r)
+def velocity(channel: Channel, u: np.ndarray, eta: np.ndarray, z, r,
+             axial: tuple[AxialExtension, np.ndarray] | None = None) -> np.ndarray:
+    """(u_z, u_r) at physical points: a (2, n) array (cm/s); ``axial`` as in :func:`to_reference`."""
+    x = to_reference(channel, eta, z, r, axial)
     return (channel.velocity.probes(x) @ u).reshape(2, -1)
 
 
-def pressure(channel: Channel, p: np.ndarray, eta: np.ndarray, z, r) -> np.ndarray:
-    """p at physical points (dyn/cm²)."""
-    return channel.pressure.probes(to_reference(channel, eta, z, r)) @ p
+def pressure(channel: Channel, p: np.ndarray, eta: np.ndarray, z, r,
+             axial: tuple[AxialExtension, np.ndarray] | None = None) -> np.ndarray:
+    """p at physical points (dyn/cm²); ``axial`` as in :func:`to_reference`."""
+    return channel.pressure.probes(to_reference(channel, eta, z, r, axial)) @ p
 
 
 def section_nodes(channel: Channel, z: float) -> np.ndarray:
