@@ -15,6 +15,10 @@ traction is interpolated).  The wall answers with its velocity x̃ = V̄_Γ.
   ``max_iterations`` times; the fluid matrix is factorized once per step
   (only its Dirichlet data change).  Iterations per step are reported.
 
+On a thick first layer under ``lumen = "no-slip"`` the interface velocity
+x stacks the lumen's (v_r, v_z): the fluid takes both as Dirichlet data, the
+band both components of its force.
+
 The domain of a step is explicit, predicted from the previous wall
 velocities as in ``monolithic``.  Energy: the fluid's identity (with the
 power of the prescribed wall velocity, Δt x·r) plus the wall's (with the
@@ -34,6 +38,7 @@ from multilayer.coupling.acceleration import IQNILS, Aitken
 from multilayer.coupling.contract import Coupler, SchemeFailure, StepReport
 from multilayer.coupling.kit import (
     ThickLumen,
+    axial_restriction,
     coupled_case_problems,
     external_force,
     fluid_columns,
@@ -68,7 +73,7 @@ class DirichletNeumann(ThickLumen, Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state),
-                **setup.fluid.energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta, state.extra.get("eta_z"))}
 
     def accelerator(self):
         """The update of the interface velocity between iterations (implicit only)."""
@@ -79,6 +84,10 @@ class DirichletNeumann(ThickLumen, Coupler):
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         structure = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver)
         ends = wall.lines[LUMEN].end_dofs
+        # under no-slip the interface velocity x stacks the lumen's (v_r, v_z), and the fluid's force both components
+        Rz = axial_restriction(setup) if self.no_slip(setup.case) else None
+        if Rz is not None:
+            ends = np.concatenate([ends, ends + R.shape[0]])
         accelerate = self.accelerator()
         if accelerate is not None:
             accelerate.recall(state.extra.get("acceleration"))
@@ -87,18 +96,26 @@ class DirichletNeumann(ThickLumen, Coupler):
             history = state.history(S.old_levels)
             domain = predicted_domain(S, history, dt)
             x = domain.velocity  # the wall velocity the fluid sees first
+            if Rz is not None:
+                x = np.concatenate([x, domain.velocity_z])
             system = fluid.system([s.fluid for s in history], domain, S, dt, (t0, t1))
             if accelerate is not None:
                 accelerate.start()
             iterations, residual = 0, 0.0
             while True:
                 iterations += 1
-                prescribed = fluid.prescribe(system, x)
+                if Rz is None:
+                    prescribed = fluid.prescribe(system, x)
+                else:
+                    prescribed = fluid.prescribe(system, *np.split(x, 2))
                 solution = fluid.solve(prescribed)
                 r = fluid.reaction(prescribed, solution.mean)  # minus the fluid's force on the wall
-                forces = {"external": external_force(setup, loads["external"]), "fluid": P @ -r}
+                force = P @ -r
+                if Rz is not None:
+                    force = force - Rz.T @ fluid.reaction(prescribed, solution.mean, axial=True)
+                forces = {"external": external_force(setup, loads["external"]), "fluid": force}
                 w = structure.step(state, forces)
-                x_tilde = R @ w.mean
+                x_tilde = R @ w.mean if Rz is None else np.concatenate([R @ w.mean, Rz @ w.mean])
                 change = x_tilde - x
                 residual = float(np.linalg.norm(change) / max(np.linalg.norm(x_tilde), 1e-300))
                 if accelerate is None or residual <= self.tolerance:
@@ -111,8 +128,12 @@ class DirichletNeumann(ThickLumen, Coupler):
                 x = accelerate.next(x, x_tilde, change)
                 x[ends] = 0.0
             eta_new = R @ w.wall.d
-            terms = fluid.identity(prescribed, solution, state.eta, eta_new)
             extra = {"acceleration": accelerate.memory()} if accelerate is not None else {}
+            axial = None
+            if Rz is not None:  # no-slip: the lumen's axial motion moves the domain too
+                extra.update(eta_z=Rz @ w.wall.d, v_z=Rz @ w.wall.V)
+                axial = (state.extra["eta_z"], extra["eta_z"])
+            terms = fluid.identity(prescribed, solution, state.eta, eta_new, axial)
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=R @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
@@ -133,7 +154,7 @@ class DirichletNeumannImplicit(DirichletNeumann):
     implicit = True
 
     def __init__(self, scheme: str = "backward-euler", acceleration: str = "iqn-ils", tolerance: float = 1e-8,
-                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8, lumen: str = "radial"):
+                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8, lumen: str = "no-slip"):
         super().__init__(scheme, lumen)
         if acceleration not in ACCELERATIONS:
             raise ValueError(f"acceleration {acceleration!r} is not one of {', '.join(ACCELERATIONS)}")

@@ -15,6 +15,10 @@ predicted domain misses of the true one is the fluid's geometric remainder
 (``dissipation.geometric.fluid``).  No splitting error: this is the
 accuracy reference of the project, and its cost anchor.
 
+On a thick first layer under ``lumen = "no-slip"`` the band's d_z DOFs on
+the lumen are the fluid's wall u_z unknowns as well (the fluid's wall mode
+``no-slip``), and the domain follows the lumen's axial motion.
+
 With Crank–Nicolson and BDF2 it takes adaptive steps (``[time] tolerance``,
 :mod:`multilayer.coupling.clock`): a new Δt changes the wall's share of the
 matrix (its pattern stays), the extrapolations see the step ratio, and so do
@@ -32,6 +36,7 @@ from multilayer.coupling.clock import Window, march
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
     ThickLumen,
+    axial_restriction,
     coupled_case_problems,
     external_force,
     fluid_columns,
@@ -59,21 +64,27 @@ class Monolithic(ThickLumen, Coupler):
     def check_case(self, case) -> list[str]:
         return super().check_case(case) + coupled_case_problems(self.name, case)
 
+    def fluid_wall(self, case) -> str:
+        """``no-slip`` for a fluid on a thick first layer under ``lumen = "no-slip"``: u_z is shared too."""
+        return "no-slip" if self.no_slip(case) else "coupled"
+
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state),
-                **setup.fluid.energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, state.eta, state.extra.get("eta_z"))}
 
-    @staticmethod
-    def numbering(setup) -> np.ndarray:
+    def numbering(self, setup) -> np.ndarray:
         """The unknown of the monolithic system of each wall DOF.
 
         The fluid's unknowns come first; a wall DOF on the lumen line's radial
-        component is the fluid's wall u_r there, every other wall DOF follows.
+        component is the fluid's wall u_r there (and under no-slip its axial
+        one the fluid's wall u_z), every other wall DOF follows.
         """
         wall, fluid = setup.wall, setup.fluid
         nf = fluid.ndofs
         glob = np.full(wall.ndofs, -1, dtype=np.int64)
         glob[wall.line_dofs(LUMEN)] = fluid.interface_dofs
+        if self.no_slip(setup.case):
+            glob[wall.line_z_dofs(LUMEN)] = fluid.interface_z_dofs
         rest = np.flatnonzero(glob < 0)
         glob[rest] = nf + np.arange(rest.size)
         return glob
@@ -82,6 +93,7 @@ class Monolithic(ThickLumen, Coupler):
         fluid, wall, stack = setup.fluid, setup.wall, setup.stack
         R = wall.restrictions[LUMEN]
         wall_stats = setup.stats("wall")
+        Rz = axial_restriction(setup) if self.no_slip(setup.case) else None
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
         solver = ReusingSolver(setup.stats("monolithic"), setup.case.solver, setup.case.reuse)
@@ -113,9 +125,13 @@ class Monolithic(ThickLumen, Coupler):
             solution = fluid.advance(system, x[: fluid.ndofs])
             wstep = structure.finish(history, x[glob], forces, dt)
             eta_new = R @ wstep.wall.d
-            terms = fluid.identity(system, solution, state.eta, eta_new)
+            axial, extra = None, state.extra
+            if Rz is not None:  # no-slip: the lumen's axial motion moves the domain too
+                extra = {**state.extra, "eta_z": Rz @ wstep.wall.d, "v_z": Rz @ wstep.wall.V}
+                axial = (state.extra["eta_z"], extra["eta_z"])
+            terms = fluid.identity(system, solution, state.eta, eta_new, axial)
             new = state.then(S.old_levels, n=w.n + 1, t=t1, wall=wstep.wall, fluid=solution.state,
-                             v=fluid.wall_velocity(solution.state), eta=eta_new)
+                             v=fluid.wall_velocity(solution.state), eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)
             return new, StepReport({**wstep.stored, **stored_f}, {**wstep.work, **work_f},
                                    {**wstep.dissipation, **dissipation_f}, fluid_columns(terms))

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+import attrs
 import numpy as np
 import scipy.sparse as sp
 
@@ -17,14 +18,19 @@ from multilayer.scene.setup import Setup
 from multilayer.wall.stack import LUMEN
 
 #: how a fluid couples to a first layer that is thick (``[coupler] lumen``): the values a coupler offers
-LUMEN_CONDITIONS = ("radial",)
+LUMEN_CONDITIONS = ("no-slip", "radial")
+
+#: the ``State.extra`` entries of the lumen's axial displacement and velocity under no-slip (line vectors)
+AXIAL = ("eta_z", "v_z")
 
 
 def lumen_param():
     """The ``lumen`` parameter of a coupler that takes a fluid directly on a thick band."""
-    return Param("lumen", type=str, default="radial", choices=LUMEN_CONDITIONS,
-                 doc="a thick first layer at the fluid: 'radial' glues only its radial motion, u = (0, ∂_t d_r) "
-                     "and d_z = 0 on the lumen (the seed's radial ALE map); ignored under a thin first layer")
+    return Param("lumen", type=str, default="no-slip", choices=LUMEN_CONDITIONS,
+                 doc="a thick first layer at the fluid: 'no-slip' (the default) glues both components, u = ∂_t d "
+                     "on the lumen, and the fluid domain follows its axial motion too; 'radial' glues only its radial motion, "
+                     "u = (0, ∂_t d_r) and d_z = 0 on the lumen (the seed's radial ALE map); ignored under a thin "
+                     "first layer")
 
 
 def coupled_case_problems(name: str, case) -> list[str]:
@@ -54,10 +60,13 @@ class ThickLumen:
 
     With ``lumen = "radial"`` the band's lumen line is glued radially: d_z = 0
     there (:meth:`radial_lines`), and the fluid's u_r on Γ is the band's
-    radial velocity, as under a thin layer (theory §1).
+    radial velocity, as under a thin layer (theory §1).  With ``"no-slip"``
+    both components are glued, u = ∂_t d on Γ, and the lumen's d_z and its
+    velocity ride in ``State.extra`` (:data:`AXIAL`) to move the fluid
+    domain axially (:func:`predicted_domain`).
     """
 
-    def __init__(self, scheme: str = "backward-euler", lumen: str = "radial"):
+    def __init__(self, scheme: str = "backward-euler", lumen: str = "no-slip"):
         super().__init__(scheme)
         if lumen not in LUMEN_CONDITIONS:
             raise ValueError(f"lumen {lumen!r} is not one of {', '.join(LUMEN_CONDITIONS)}")
@@ -65,8 +74,31 @@ class ThickLumen:
 
     def radial_lines(self, case) -> tuple[int, ...]:
         """The lumen line when layers[0] is thick (a thin first layer holds its d_z itself)."""
-        thick_first = bool(case.layers) and not case.layers[0].thin
-        return (LUMEN,) if thick_first and self.lumen == "radial" else ()
+        return (LUMEN,) if thick_first(case) and self.lumen == "radial" else ()
+
+    def no_slip(self, case) -> bool:
+        """True when the fluid lies on a thick first layer under ``lumen = "no-slip"``."""
+        return thick_first(case) and self.lumen == "no-slip"
+
+    def initial_state(self, setup: Setup):
+        """The setup's state at t = 0, with the lumen's d_z and its velocity under no-slip (``State.extra``)."""
+        state = super().initial_state(setup)
+        if not (setup.fluid is not None and self.no_slip(setup.case)):
+            return state
+        Rz = axial_restriction(setup)
+        return attrs.evolve(state, extra={**state.extra, "eta_z": Rz @ state.wall.d, "v_z": Rz @ state.wall.V})
+
+
+def thick_first(case) -> bool:
+    """True when the case's first layer, at the fluid, is thick."""
+    return bool(case.layers) and not case.layers[0].thin
+
+
+def axial_restriction(setup: Setup) -> sp.csr_matrix:
+    """Wall vector → the lumen line's d_z (line numbering)."""
+    wall = setup.wall
+    n = wall.lines[LUMEN].ndofs
+    return sp.csr_matrix((np.ones(n), (np.arange(n), wall.line_z_dofs(LUMEN))), shape=(n, wall.ndofs))
 
 
 def lumen_layers(setup: Setup) -> list[int]:
@@ -125,11 +157,18 @@ def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Domain
 
     The wall velocity is extrapolated to where the scheme evaluates its
     operator, the displacement integrated from it (Σα_k η^{n+1−k} = Δt c),
-    and the domain is the scheme's geometry of those (theory §6).
+    and the domain is the scheme's geometry of those (theory §6); under
+    no-slip (``eta_z``, ``v_z`` in the states' ``extra``) the lumen's axial
+    motion likewise.
     """
     etas = [x.eta for x in history]
     velocity = scheme.extrapolate([x.v for x in history])
-    return Domain(scheme.geometry([scheme.displacement(velocity, etas, dt), *etas]), velocity)
+    eta = scheme.geometry([scheme.displacement(velocity, etas, dt), *etas])
+    if AXIAL[0] not in history[0].extra:
+        return Domain(eta, velocity)
+    etas_z = [x.extra["eta_z"] for x in history]
+    velocity_z = scheme.extrapolate([x.extra["v_z"] for x in history])
+    return Domain(eta, velocity, scheme.geometry([scheme.displacement(velocity_z, etas_z, dt), *etas_z]), velocity_z)
 
 
 def quadratic(M: sp.spmatrix):

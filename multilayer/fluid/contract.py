@@ -29,7 +29,8 @@ class FluidSetup:
     """What a fluid is discretized for: the geometry, the channel and its mesh, the wall mode, the ends.
 
     ``wall`` is how the fluid sees the wall: ``coupled`` (its u_r on the wall
-    is an unknown the coupler ties to the wall), ``rigid`` (u = 0, the domain
+    is an unknown the coupler ties to the wall), ``no-slip`` (its u_r and u_z
+    there are, for a fluid on a thick band), ``rigid`` (u = 0, the domain
     never moves) or ``prescribed`` (u_r given on the wall).  ``ends`` holds
     the condition of each open end (``inlet``, ``outlet``); an end left out
     is traction-free.  ``line`` is the interface line's space when the caller
@@ -62,11 +63,17 @@ class Domain:
 
     ``eta`` is the wall displacement of the geometry the step is assembled
     on (J_m, ∇^η); ``velocity`` the wall velocity c that moves the domain
-    during the step (∂_t J = c/R, ALE velocity w = c r̂/R).
+    during the step (∂_t J = c/R, ALE velocity w = c r̂/R).  ``eta_z`` and
+    ``velocity_z``, when given, move it axially as well
+    (:meth:`multilayer_plugins.channel.ale.ALEFields.moving`).
     """
 
     eta: np.ndarray
     velocity: np.ndarray
+    #: the lumen's axial displacement and velocity under no-slip at a thick first layer (the domain then
+    #: moves axially too, by their harmonic extension); None under the radial map
+    eta_z: np.ndarray | None = None
+    velocity_z: np.ndarray | None = None
 
     @classmethod
     def still(cls, n: int) -> Domain:
@@ -124,6 +131,11 @@ class Fluid(ABC):
         """The unknown of the fluid's system that is the wall's u_r at each line DOF."""
 
     @property
+    def interface_z_dofs(self) -> np.ndarray:
+        """The unknown of the fluid's system that is the wall's u_z at each line DOF (no-slip at a thick band)."""
+        raise NotImplementedError(f"{type(self).__name__} has no wall u_z unknowns: it cannot take lumen = 'no-slip'")
+
+    @property
     @abstractmethod
     def stats(self) -> SolverStats:
         """Factorizations and solves of the fluid's own systems."""
@@ -165,8 +177,9 @@ class Fluid(ABC):
         """Solve ``system``; the result has ``state`` (the new state) and ``mean`` (the test-level x̄)."""
 
     @abstractmethod
-    def prescribe(self, system: Any, wall_velocity: np.ndarray) -> Any:
-        """``system`` with the wall's u_r prescribed to ``wall_velocity`` (a line vector; prescribed mode).
+    def prescribe(self, system: Any, wall_velocity: np.ndarray, wall_velocity_z: np.ndarray | None = None) -> Any:
+        """``system`` with the wall's u_r prescribed to ``wall_velocity`` (a line vector; prescribed mode), and
+        its u_z to ``wall_velocity_z`` under no-slip at a thick band.
 
         Only the Dirichlet data change: a Dirichlet–Neumann coupler iterates on
         it without refactorizing.
@@ -177,12 +190,15 @@ class Fluid(ABC):
         """The solution of ``system`` from its test-level unknowns x̄ solved elsewhere."""
 
     @abstractmethod
-    def identity(self, system: Any, solution: Any, eta_old: np.ndarray, eta_new: np.ndarray) -> dict[str, float]:
-        """The step's energy terms (see :meth:`multilayer_plugins.channel.step.FluidStep.identity`)."""
+    def identity(self, system: Any, solution: Any, eta_old: np.ndarray, eta_new: np.ndarray,
+                 axial: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
+        """The step's energy terms (see :meth:`multilayer_plugins.channel.step.FluidStep.identity`); ``axial``
+        the lumen's d_z at tⁿ and tⁿ⁺¹ under an axial mesh motion."""
 
     @abstractmethod
-    def reaction(self, system: Any, mean: np.ndarray) -> np.ndarray:
-        """The fluid's residual on the wall's u_r rows as a line vector: minus its force on the wall."""
+    def reaction(self, system: Any, mean: np.ndarray, axial: bool = False) -> np.ndarray:
+        """The fluid's residual on the wall's u_r rows (its u_z rows if ``axial``) as a line vector: minus its
+        force on the wall."""
 
     def step(self, history: Sequence[Any], domain: Domain, scheme: TimeScheme, dt: float,
              times: tuple[float, float], interface: Interface | None = None, eta_old: np.ndarray | None = None,
@@ -203,33 +219,37 @@ class Fluid(ABC):
         """The wall's u_r of ``state`` as a line vector."""
 
     @abstractmethod
-    def energy(self, state: Any, eta: np.ndarray | None = None) -> dict[str, float]:
-        """The fluid's stored energy by ledger column: ``kinetic.fluid`` and what its ends' conditions store."""
+    def energy(self, state: Any, eta: np.ndarray | None = None,
+               eta_z: np.ndarray | None = None) -> dict[str, float]:
+        """The fluid's stored energy by ledger column: ``kinetic.fluid`` and what its ends' conditions store
+        (``eta_z``: the lumen's d_z of an axially moved domain)."""
 
     @abstractmethod
-    def kinetic_energy(self, state: Any, eta: np.ndarray | None = None) -> float:
-        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+    def kinetic_energy(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta`` (and ``eta_z``)."""
 
     @abstractmethod
-    def flow_rate(self, state: Any, eta: np.ndarray | None, z: float) -> float:
-        """Volume flux through the section at z (cm²/s)."""
+    def flow_rate(self, state: Any, eta: np.ndarray | None, z: float, eta_z: np.ndarray | None = None) -> float:
+        """Volume flux through the section at z (cm²/s) (the section moved by the lumen's ``eta_z`` when given)."""
 
     @abstractmethod
     def probe(self, quantity: str, z: float, rhat: float | None = None) -> Any:
-        """A function (state, η) → float for a probe, built once per run.
+        """A function (state, η) → float for a probe, built once per run; called (state, η, η_z) when the
+        domain moves axially (the lumen's d_z, no-slip at a thick band).
 
         ``u_z``, ``u_r``, ``p`` at the reference point (z, r̂) of the ALE map
         (it moves with the channel), or ``flow_rate`` through the section z.
         """
 
     @abstractmethod
-    def velocity(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """(u_z, u_r) at physical points, a (2, n) array."""
+    def velocity(self, state: Any, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array (of the domain moved axially by ``eta_z`` when given)."""
 
     @abstractmethod
-    def pressure(self, state: Any, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """Pressure at physical points."""
+    def pressure(self, state: Any, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """Pressure at physical points (of the domain moved axially by ``eta_z`` when given)."""
 
     @abstractmethod
-    def snapshot(self, state: Any, eta: np.ndarray | None = None) -> tuple:
-        """(points (n, 2) in the deformed channel, triangles, point data)."""
+    def snapshot(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> tuple:
+        """(points (n, 2) in the deformed channel, triangles, point data); ``eta_z`` the lumen's d_z of an
+        axially moved domain."""

@@ -84,7 +84,8 @@ class Setup:
         ``wall_mode`` is how the fluid sees the wall: ``coupled``, ``rigid`` or
         ``prescribed`` (what the case's coupler asks, :meth:`Coupler.fluid_wall`);
         ``radial_lines`` the interface lines whose d_z it holds at zero
-        (:meth:`Coupler.radial_lines`).
+        (:meth:`Coupler.radial_lines`).  A fluid on a thick first layer pins
+        the lumen line's ends in both components (the domain keeps its length).
         """
         t0 = time.perf_counter()
         geometry = build_geometry(registry, case.geometry)
@@ -95,7 +96,8 @@ class Setup:
         if layers:
             wall = WallSpace.build(layers, geometry, g.length, g.radius, m.nz, m.order,
                                    [spec.cells for spec in case.layers], [spec.model for spec in case.layers])
-            stack = Stack.assemble(wall, radial_lines)
+            pinned = (LUMEN,) if fluid is not None and not layers[0].thin else ()
+            stack = Stack.assemble(wall, radial_lines, pinned)
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
             fluid.setup(FluidSetup(geometry, g.length, g.radius, m.nz, m.nr, m.order, m.grading, wall_mode,
@@ -180,7 +182,8 @@ class Setup:
         out = {}
         for name, (kind, line, ev) in rows.items():
             if kind == "fluid":
-                out[name] = ev(state.fluid, state.eta)
+                eta_z = state.extra.get("eta_z")  # an axially moving domain's (no-slip at a thick band)
+                out[name] = ev(state.fluid, state.eta) if eta_z is None else ev(state.fluid, state.eta, eta_z)
                 continue
             if kind == "d":
                 vec = state.wall.d
@@ -224,7 +227,7 @@ class Setup:
         The points are already where the fluid is, so no displacement field is
         written (Warp By Vector would move the channel twice).
         """
-        pts, tri, data = self.fluid.snapshot(state.fluid, state.eta)
+        pts, tri, data = self.fluid.snapshot(state.fluid, state.eta, state.extra.get("eta_z"))
         return _xyz(pts), {"triangle": tri}, self._measured(pts, {k: _xyz(v) if np.ndim(v) == 2 else v
                                                                  for k, v in data.items() if k != "displacement"})
 

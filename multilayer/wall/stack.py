@@ -135,6 +135,11 @@ class WallSpace:
         line = self.lines[i]
         return self.prolongations[i] @ skfem.asm(_unit_load, line.basis)
 
+    def line_z_dofs(self, i: int) -> np.ndarray:
+        """Wall d_z DOFs of line i, in the line's own order (the same nodes as :meth:`line_dofs`)."""
+        z_dofs, r_dofs = self.basis.split_indices()
+        return z_dofs[np.searchsorted(r_dofs, self.line_dofs(i))]
+
     def tangential_dofs_on(self, i: int) -> np.ndarray:
         """d_z DOFs on line i (held at zero under a thin layer)."""
         if self.basis is None:
@@ -174,12 +179,14 @@ class Stack:
     free: np.ndarray
 
     @classmethod
-    def assemble(cls, space: WallSpace, radial_lines: Sequence[int] = ()) -> Stack:
+    def assemble(cls, space: WallSpace, radial_lines: Sequence[int] = (), pinned_lines: Sequence[int] = ()) -> Stack:
         """Every layer's matrices on its space, checked (:func:`layer_output`), summed in wall numbering.
 
         d_z is held at zero on the line of every thin layer and on ``radial_lines``
         (a fluid glued radially to a thick band: :meth:`Coupler.radial_lines`), whose
         ends are pinned as a thin layer's are (the fluid holds u_r = 0 at Γ's corners).
+        On ``pinned_lines`` (a fluid on a thick band under no-slip) only the
+        ends are held, in both components: the fluid domain keeps its length.
 
         Raises
         ------
@@ -191,6 +198,9 @@ class Stack:
         fixed = [np.zeros(0, dtype=np.int64)]
         for i in radial_lines:
             fixed += [space.tangential_dofs_on(i), space.line_dofs(i)[space.lines[i].end_dofs]]
+        for i in pinned_lines:
+            ends = space.lines[i].end_dofs
+            fixed += [space.line_z_dofs(i)[ends], space.line_dofs(i)[ends]]
         for p in space.placements:
             own, ess = layer_output(p, space.space_of(p))
             if p.line is not None:

@@ -16,6 +16,19 @@ planar channel, (v/R)(Jⁿ + J^{n+1}) in a tube.  A tube's forms also take
 1/r = 1/(J r̂), the hoop factor.  All of them are evaluated at the quadrature
 points of the reference mesh, from line vectors η and v, by two sparse
 products fixed at setup.
+
+Under no-slip at a thick first layer (``lumen = "no-slip"``) the map moves
+axially too: X̂ + D with D_r = r̂ η/R and D_z the harmonic extension of the
+lumen's d_z (:mod:`multilayer_plugins.channel.extension`), so
+
+    F = I + ∇̂D = [[1 + ∂_ẑD_z, ∂_r̂D_z], [r̂ η_z/R, (R + η)/R]],
+
+∂_z = g_zz ∂_ẑ + g_z ∂_r̂, ∂_r = g_rz ∂_ẑ + g_r ∂_r̂ with (g_zz, g_z; g_rz, g_r)
+the columns of F⁻¹, the volume element J = det F ((R + η)/R)ᵏ, its rate the
+exact difference quotient (J^{n+1} − Jⁿ)/Δt of the step's two ends at each
+quadrature point, and the domain velocity w = (Dⁿ⁺¹ − Dⁿ)/Δt in both
+components (:meth:`ALEFields.moving`).  With d_z = 0 these are the radial
+map's fields.
 """
 
 from __future__ import annotations
@@ -24,6 +37,7 @@ import attrs
 import numpy as np
 
 from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.extension import AxialExtension
 
 
 @attrs.frozen(eq=False)
@@ -53,6 +67,11 @@ class ALEFields:
     hoop: np.ndarray | None = None
     #: k: how many hoop directions the measure c rᵏ has (1 in a tube), each with its u_r/r
     hoops: int = 0
+    #: under an axial mesh motion: the ∂_ẑ coefficients of ∂_z and ∂_r (F⁻¹'s other column) and the
+    #: domain's axial velocity w_z; None under the radial map (∂_z = ∂_ẑ + g_z ∂_r̂, ∂_r = g_r ∂_r̂, w_z = 0)
+    gzz: np.ndarray | None = None
+    grz: np.ndarray | None = None
+    wz: np.ndarray | None = None
 
     @classmethod
     def at(cls, channel: Channel, eta: np.ndarray, v: np.ndarray, dt: float = 0.0,
@@ -92,15 +111,73 @@ class ALEFields:
         )
 
     @classmethod
+    def moving(cls, channel: Channel, extension: AxialExtension, eta: np.ndarray, v: np.ndarray,
+               eta_z: np.ndarray, v_z: np.ndarray, dt: float, position: float = 0.0) -> ALEFields:
+        """Fields of the domain of (``eta_z``, ``eta``) moving with the lumen's velocity (``v_z``, ``v``).
+
+        The domain sits at tⁿ + ``position``·Δt in a step of ``dt`` > 0, as in
+        :meth:`at`; the step's ends are the lumen's line moved linearly by
+        (v_z, v), and the rate of J is its exact difference quotient between
+        them (the GCL to round-off, whatever the degree of J in time).
+        """
+        if not dt > 0.0:
+            raise ValueError(f"an axial mesh motion needs the step's Δt > 0, got {dt!r}")
+        R, shape, rhat = channel.radius, channel.quad_shape, channel.rhat
+        F = deformation(channel, extension, eta, eta_z)
+        before = volume_element(channel, deformation(channel, extension, eta - position * dt * v,
+                                                     eta_z - position * dt * v_z))
+        after = volume_element(channel, deformation(channel, extension, eta + (1.0 - position) * dt * v,
+                                                    eta_z + (1.0 - position) * dt * v_z))
+        det = F[0][0] * F[1][1] - F[0][1] * F[1][0]
+        if np.min(det) <= 0.0:
+            raise ValueError(f"the axial mesh motion folds the fluid domain: min det F = {np.min(det):.3g}")
+        v_q = (channel.eta_at_quad @ v).reshape(shape)
+        stretched = F[1][1] * R
+        return cls(
+            J=volume_element(channel, F),
+            gz=-F[1][0] / det,
+            gr=F[0][0] / det,
+            dJdt=(after - before) / dt,
+            wr=v_q * rhat / R,
+            J_in=1.0 + float(eta[channel.ends[0]]) / R,
+            J_out=1.0 + float(eta[channel.ends[1]]) / R,
+            hoop=1.0 / (stretched / R * rhat) if channel.geometry.radial_power else None,
+            hoops=channel.geometry.radial_power,
+            gzz=F[1][1] / det,
+            grz=-F[0][1] / det,
+            wz=extension.at_quad(v_z)[0],
+        )
+
+    @classmethod
     def rigid(cls, channel: Channel) -> ALEFields:
         """The undeformed channel at rest: J = 1, ∇^η = ∇̂, w = 0."""
         zero = np.zeros(channel.line.ndofs)
         return cls.at(channel, zero, zero)
 
     def forms_kwargs(self) -> dict[str, np.ndarray]:
-        """The fields as the ``w`` arguments of :mod:`multilayer_plugins.channel.forms`."""
-        return {"J": self.J, "gz": self.gz, "gr": self.gr}
+        """The fields as the ``w`` arguments of :mod:`multilayer_plugins.channel.forms` (with ``gzz``, ``grz``
+        under an axial mesh motion)."""
+        if self.gzz is None:
+            return {"J": self.J, "gz": self.gz, "gr": self.gr}
+        return {"J": self.J, "gz": self.gz, "gr": self.gr, "gzz": self.gzz, "grz": self.grz}
 
     def hoop_kwargs(self) -> dict[str, np.ndarray]:
         """The fields of the hoop forms (``J`` and ``hoop`` = 1/r); only where :attr:`hoop` is not None."""
         return {"J": self.J, "hoop": self.hoop}
+
+
+def deformation(channel: Channel, extension: AxialExtension, eta: np.ndarray, eta_z: np.ndarray) -> tuple:
+    """F = I + ∇̂D at the quadrature points for the lumen's (``eta_z``, ``eta``): nested tuples [i][j] = ∂_ĵ x_i."""
+    R, shape, rhat = channel.radius, channel.quad_shape, channel.rhat
+    eta_q = (channel.eta_at_quad @ eta).reshape(shape)
+    eta_zq = (channel.eta_z_at_quad @ eta).reshape(shape)
+    if np.min(R + eta_q) <= 0.0:
+        raise ValueError(f"the wall displacement closes the channel: min(R + η) = {np.min(R + eta_q):.3g} cm")
+    _, D_zhat, D_rhat = extension.at_quad(eta_z)
+    return ((1.0 + D_zhat, D_rhat), (rhat * eta_zq / R, (R + eta_q) / R))
+
+
+def volume_element(channel: Channel, F: tuple) -> np.ndarray:
+    """J = det F · (r/r̂)ᵏ of the map with :func:`deformation` F (r/r̂ = (R + η)/R = F_rr)."""
+    det = F[0][0] * F[1][1] - F[0][1] * F[1][0]
+    return det * F[1][1] ** channel.geometry.radial_power

@@ -49,8 +49,14 @@ def grad_eta(u, w) -> tuple:
     Nested tuples of the four entries (no array of them is stacked: in the
     batched assembly each entry is a kernel-sized array, and a stacked copy
     of the four would be the most of a form's cost).
+
+    Under an axial mesh motion (``gzz``, ``grz`` among the fields) every
+    entry of F⁻¹ enters: ∂_z = g_zz ∂_ẑ + g_z ∂_r̂, ∂_r = g_rz ∂_ẑ + g_r ∂_r̂.
     """
     G = u.grad
+    if getattr(w, "gzz", None) is not None:
+        return ((w.gzz * G[0][0] + w.gz * G[0][1], w.grz * G[0][0] + w.gr * G[0][1]),
+                (w.gzz * G[1][0] + w.gz * G[1][1], w.grz * G[1][0] + w.gr * G[1][1]))
     return ((G[0][0] + w.gz * G[0][1], w.gr * G[0][1]),
             (G[1][0] + w.gz * G[1][1], w.gr * G[1][1]))
 

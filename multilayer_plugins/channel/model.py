@@ -19,7 +19,7 @@ from multilayer.geometry.spaces import LineSpace
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.plugin.records import Param
 from multilayer_plugins.channel import probes
-from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.ale import ALEFields, deformation, volume_element
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ledger import fluid_kinetic
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
@@ -110,6 +110,10 @@ class ChannelFluid(Fluid):
         return self.discrete.interface_dofs
 
     @property
+    def interface_z_dofs(self) -> np.ndarray:
+        return self.discrete.interface_z_dofs
+
+    @property
     def stats(self) -> SolverStats:
         return self.discrete.stats
 
@@ -167,60 +171,81 @@ class ChannelFluid(Fluid):
     def solve(self, system: FluidSystem) -> Solution:
         return self.discrete.solve(system)
 
-    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
-        return self.discrete.prescribe(system, wall_velocity)
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray,
+                  wall_velocity_z: np.ndarray | None = None) -> FluidSystem:
+        return self.discrete.prescribe(system, wall_velocity, wall_velocity_z)
 
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
         return self.discrete.advance(system, mean)
 
-    def identity(self, system, solution, eta_old, eta_new) -> dict[str, float]:
-        return self.discrete.identity(system, solution, eta_old, eta_new)
+    def identity(self, system, solution, eta_old, eta_new, axial=None) -> dict[str, float]:
+        return self.discrete.identity(system, solution, eta_old, eta_new, axial)
 
-    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
-        return self.discrete.reaction(system, mean)
+    def reaction(self, system: FluidSystem, mean: np.ndarray, axial: bool = False) -> np.ndarray:
+        return self.discrete.reaction(system, mean, axial)
 
     def wall_velocity(self, state: FluidState) -> np.ndarray:
         return state.v
 
-    def energy(self, state: FluidState, eta: np.ndarray | None = None) -> dict[str, float]:
+    def energy(self, state: FluidState, eta: np.ndarray | None = None,
+               eta_z: np.ndarray | None = None) -> dict[str, float]:
         """``kinetic.fluid`` and what the ends' conditions store (a Windkessel's capacitor), by ledger column."""
-        return {"kinetic.fluid": self.kinetic_energy(state, eta), **self.discrete.ends.energy(state.ends)}
+        return {"kinetic.fluid": self.kinetic_energy(state, eta, eta_z), **self.discrete.ends.energy(state.ends)}
 
-    def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None) -> float:
-        """½ρ_f ∫ J|u|² on the domain of ``eta``."""
+    def kinetic_energy(self, state: FluidState, eta: np.ndarray | None = None,
+                       eta_z: np.ndarray | None = None) -> float:
+        """½ρ_f ∫ J|u|² on the domain of ``eta`` (moved axially by ``eta_z`` when given)."""
         ch = self.channel
         eta = self._eta(eta)
+        if eta_z is not None:
+            J = volume_element(ch, deformation(ch, self.discrete.extension, eta, eta_z))
+            return fluid_kinetic(ch, self.density, J, state.u)
         fields = ALEFields.at(ch, eta, np.zeros_like(eta))
         return fluid_kinetic(ch, self.density, fields.J, state.u)
 
-    def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float) -> float:
-        """Volume flux through the section at z (cm²/s)."""
-        return probes.flow_rate(self.channel, state.u, self._eta(eta), z)
+    def flow_rate(self, state: FluidState, eta: np.ndarray | None, z: float, eta_z: np.ndarray | None = None) -> float:
+        """Volume flux through the section at z (cm²/s), moved axially by ``eta_z`` when given."""
+        return probes.flow_rate(self.channel, state.u, self._eta(eta), z, self._axial(eta_z))
 
     def probe(self, quantity: str, z: float, rhat: float | None = None):
         """A function (state, η) → value for ``quantity`` (``u_z``, ``u_r``, ``p`` at the
         reference point (z, r̂), or ``flow_rate`` through the section z), built once."""
         ch = self.channel
         if quantity == "flow_rate":
-            sample = probes.flow_rate_sampler(ch, z)
-            return lambda state, eta: sample(state.u, self._eta(eta))
+            radial = probes.flow_rate_sampler(ch, z)
+            axial = []  # built at the first call with the lumen's d_z (no-slip at a thick band)
+
+            def flow_rate(state, eta, eta_z=None):
+                if eta_z is None:
+                    return radial(state.u, self._eta(eta))
+                if not axial:
+                    axial.append(probes.flow_rate_sampler(ch, z, self.discrete.extension))
+                return axial[0](state.u, self._eta(eta), eta_z)
+
+            return flow_rate
         point = probes.reference_point_sampler(ch, quantity, z, rhat)
-        return lambda state, eta: point(state.u, state.p)
+        return lambda state, eta, eta_z=None: point(state.u, state.p)
 
-    def velocity(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """(u_z, u_r) at physical points, a (2, n) array (cm/s)."""
-        return probes.velocity(self.channel, state.u, self._eta(eta), z, r)
+    def velocity(self, state: FluidState, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """(u_z, u_r) at physical points, a (2, n) array (cm/s); the domain moved axially by ``eta_z`` when given."""
+        return probes.velocity(self.channel, state.u, self._eta(eta), z, r, self._axial(eta_z))
 
-    def pressure(self, state: FluidState, eta: np.ndarray | None, z, r) -> np.ndarray:
-        """Pressure at physical points (dyn/cm²)."""
-        return probes.pressure(self.channel, state.p, self._eta(eta), z, r)
+    def pressure(self, state: FluidState, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """Pressure at physical points (dyn/cm²); the domain moved axially by ``eta_z`` when given."""
+        return probes.pressure(self.channel, state.p, self._eta(eta), z, r, self._axial(eta_z))
 
-    def snapshot(self, state: FluidState, eta: np.ndarray | None = None):
-        """(points, triangles, point_data) in the deformed geometry; see :func:`probes.snapshot`."""
-        return probes.snapshot(self.channel, state.u, state.p, self._eta(eta))
+    def snapshot(self, state: FluidState, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None):
+        """(points, triangles, point_data) in the deformed geometry, moved axially by the harmonic extension of
+        ``eta_z`` when given; see :func:`probes.snapshot`."""
+        axial = None if eta_z is None else self.discrete.extension.at_vertices(eta_z)
+        return probes.snapshot(self.channel, state.u, state.p, self._eta(eta), axial)
 
     def _eta(self, eta: np.ndarray | None) -> np.ndarray:
         return np.zeros(self.line.ndofs) if eta is None else eta
+
+    def _axial(self, eta_z: np.ndarray | None):
+        """(the extension, d_z) of an axially moved domain, None for the radial map."""
+        return None if eta_z is None else (self.discrete.extension, eta_z)
 
 
 class NavierStokes(ChannelFluid):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.extension import AxialExtension
 
 
 def wall_displacement(channel: Channel, eta: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -19,23 +20,42 @@ def wall_displacement(channel: Channel, eta: np.ndarray, z: np.ndarray) -> np.nd
     return channel.line.basis.probes(z[None, :]) @ eta
 
 
-def to_reference(channel: Channel, eta: np.ndarray, z, r) -> np.ndarray:
-    """Reference points (ẑ, r̂) of physical points (z, r): a (2, n) array."""
+def to_reference(channel: Channel, eta: np.ndarray, z, r,
+                 axial: tuple[AxialExtension, np.ndarray] | None = None) -> np.ndarray:
+    """Reference points (ẑ, r̂) of physical points (z, r): a (2, n) array.
+
+    Under an axial mesh motion (``axial`` = the extension and the lumen's d_z)
+    ẑ solves ẑ + D_z(ẑ, r̂) = z by fixed-point iteration (a contraction while
+    |∂_ẑD_z| < 1, which a map that does not fold has), r̂ = R r/(R + η(ẑ)).
+    """
     z = np.atleast_1d(np.asarray(z, dtype=float))
     r = np.broadcast_to(np.asarray(r, dtype=float), z.shape)
     R = channel.radius
-    return np.vstack([z, R * r / (R + wall_displacement(channel, eta, z))])
+    if axial is None:
+        return np.vstack([z, R * r / (R + wall_displacement(channel, eta, z))])
+    extension, d_z = axial
+    D = extension.extend(d_z)
+    zhat = z.copy()
+    for _ in range(100):
+        x = np.vstack([zhat, R * r / (R + wall_displacement(channel, eta, zhat))])
+        moved = np.clip(z - extension.basis.probes(x) @ D, 0.0, channel.length)
+        if np.max(np.abs(moved - zhat)) <= 4 * np.finfo(float).eps * channel.length:
+            break
+        zhat = moved
+    return np.vstack([moved, R * r / (R + wall_displacement(channel, eta, moved))])
 
 
-def velocity(channel: Channel, u: np.ndarray, eta: np.ndarray, z, r) -> np.ndarray:
-    """(u_z, u_r) at physical points: a (2, n) array (cm/s)."""
-    x = to_reference(channel, eta, z, r)
+def velocity(channel: Channel, u: np.ndarray, eta: np.ndarray, z, r,
+             axial: tuple[AxialExtension, np.ndarray] | None = None) -> np.ndarray:
+    """(u_z, u_r) at physical points: a (2, n) array (cm/s); ``axial`` as in :func:`to_reference`."""
+    x = to_reference(channel, eta, z, r, axial)
     return (channel.velocity.probes(x) @ u).reshape(2, -1)
 
 
-def pressure(channel: Channel, p: np.ndarray, eta: np.ndarray, z, r) -> np.ndarray:
-    """p at physical points (dyn/cm²)."""
-    return channel.pressure.probes(to_reference(channel, eta, z, r)) @ p
+def pressure(channel: Channel, p: np.ndarray, eta: np.ndarray, z, r,
+             axial: tuple[AxialExtension, np.ndarray] | None = None) -> np.ndarray:
+    """p at physical points (dyn/cm²); ``axial`` as in :func:`to_reference`."""
+    return channel.pressure.probes(to_reference(channel, eta, z, r, axial)) @ p
 
 
 def section_nodes(channel: Channel, z: float) -> np.ndarray:
@@ -50,8 +70,8 @@ def section_nodes(channel: Channel, z: float) -> np.ndarray:
     return np.unique(np.concatenate([[0.0, channel.radius], r]))
 
 
-def flow_rate_sampler(channel: Channel, z: float):
-    """Q(z) as a function of (u, η), its sampling built once.
+def flow_rate_sampler(channel: Channel, z: float, extension: AxialExtension | None = None):
+    """Q(z) as a function of (u, η) (and the lumen's d_z with an ``extension``), its sampling built once.
 
     Q(z) = ∫₀^{R+η(z)} u_z weight(r) dr = J(z)^{1+k} ∫₀^R u_z(z, r̂) weight(r̂) dr̂ in the
     geometry's measure weight(r) = c rᵏ (cm²/s per unit depth in the planar
@@ -59,6 +79,11 @@ def flow_rate_sampler(channel: Channel, z: float):
     Gauss–Legendre with three points between consecutive crossings of mesh
     edges integrates P2 and P1b velocities exactly.  Neither the points nor
     the weights depend on η, so only J(z) changes with the wall.
+
+    Under an axial mesh motion the section ẑ = z is the curve moved by D, its
+    normal times length cof(F) e_ẑ dr̂ = (J, −∂_r̂D_z) dr̂: the sampler called
+    with d_z adds −Jᵏ ∫ u_r ∂_r̂D_z weight(r̂) dr̂ (degree ≤ 4 along the
+    section: exact with the same points).
     """
     nodes = section_nodes(channel, z)
     g, wg = np.polynomial.legendre.leggauss(3)
@@ -69,16 +94,28 @@ def flow_rate_sampler(channel: Channel, z: float):
     row = weights @ channel.velocity.probes(x).tocsr()[: len(rhat)]  # the u_z rows
     eta_row = channel.line.basis.probes(np.array([[z]])).tocsr()
     R = channel.radius
+    tilt = None
+    if extension is not None:  # the u_r rows at the points, and ∂_r̂D_z there
+        u_r = channel.velocity.probes(x).tocsr()[len(rhat):]
+        tilt = (u_r, extension.radial_slope_probes(x), weights)
 
-    def sample(u: np.ndarray, eta: np.ndarray) -> float:
-        return channel.geometry.stretch(1.0 + float((eta_row @ eta)[0]) / R) * float(row @ u)
+    def sample(u: np.ndarray, eta: np.ndarray, d_z: np.ndarray | None = None) -> float:
+        J = 1.0 + float((eta_row @ eta)[0]) / R
+        q = channel.geometry.stretch(J) * float(row @ u)
+        if d_z is None:
+            return q
+        u_r, slope, w = tilt
+        return q - J ** channel.geometry.radial_power * float(w @ ((u_r @ u) * (slope @ extension.extend(d_z))))
 
     return sample
 
 
-def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float) -> float:
-    """Q(z) (cm²/s); see :func:`flow_rate_sampler`."""
-    return flow_rate_sampler(channel, z)(u, eta)
+def flow_rate(channel: Channel, u: np.ndarray, eta: np.ndarray, z: float,
+              axial: tuple[AxialExtension, np.ndarray] | None = None) -> float:
+    """Q(z) (cm²/s); see :func:`flow_rate_sampler` (``axial``: the extension and the lumen's d_z)."""
+    if axial is None:
+        return flow_rate_sampler(channel, z)(u, eta)
+    return flow_rate_sampler(channel, z, axial[0])(u, eta, axial[1])
 
 
 def reference_point_sampler(channel: Channel, quantity: str, z: float, rhat: float):
@@ -95,17 +132,19 @@ def reference_point_sampler(channel: Channel, quantity: str, z: float, rhat: flo
     return lambda u, p: float((row @ u)[0])
 
 
-def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+def snapshot(channel: Channel, u: np.ndarray, p: np.ndarray, eta: np.ndarray,
+             axial: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(points, triangles, point_data) of the mesh vertices in the physical geometry.
 
     ``points`` is (n, 2) in (z, r); ``point_data`` holds ``velocity`` (n, 2),
     ``pressure`` (n,) and ``displacement`` (n, 2), the ALE displacement
-    (0, η r̂/R) that moves a vertex of Ω̂ to its place.
+    (D_z, η r̂/R) that moves a vertex of Ω̂ to its place: D_z = ``axial`` at the
+    vertices under an axial mesh motion, 0 otherwise.
     """
     mesh = channel.mesh
     zhat, rhat = mesh.p
     eta_v = wall_displacement(channel, eta, zhat)
-    displacement = np.vstack([np.zeros_like(zhat), eta_v * rhat / channel.radius])
+    displacement = np.vstack([np.zeros_like(zhat) if axial is None else axial, eta_v * rhat / channel.radius])
     vertex_u = channel.velocity.nodal_dofs  # (2 components, vertices)
     vel = u[vertex_u]
     pres = p[channel.pressure.nodal_dofs[0]]

@@ -27,6 +27,9 @@ Wall modes:
 
 ``coupled``
     the wall's u_r DOFs are unknowns (ū_r = v̄ on Γ);
+``no-slip``
+    the wall's u_r and u_z DOFs are unknowns, but u_z at Γ's corners (a
+    fluid on a thick band: a monolithic coupler adds the band's d_z rows);
 ``rigid``
     u = 0 on the wall and the domain never moves;
 ``prescribed``
@@ -62,12 +65,13 @@ from multilayer.numerics.linsolve import (
 )
 from multilayer.numerics.timescheme import TimeScheme, levels
 from multilayer_plugins.channel import forms
-from multilayer_plugins.channel.ale import ALEFields
+from multilayer_plugins.channel.ale import ALEFields, deformation, volume_element
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ends import Ends
+from multilayer_plugins.channel.extension import AxialExtension
 from multilayer_plugins.channel.ledger import Quadrature
 
-WALL_MODES = ("coupled", "rigid", "prescribed")
+WALL_MODES = ("coupled", "no-slip", "rigid", "prescribed")
 
 
 @attrs.frozen(eq=False)
@@ -172,7 +176,7 @@ class FluidStep:
         self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
         self.ends = Ends(channel, ends or {})
-        if wall != "coupled" and len(self.ends.multipliers) == len(ENDS):
+        if wall in ("rigid", "prescribed") and len(self.ends.multipliers) == len(ENDS):
             # the incompressibility dilemma: a fluid whose wall it does not move has no volume to give
             raise ValueError(f"a flow rate at both ends of a fluid on a {wall} wall fixes its volume balance twice "
                              f"and leaves the level of the pressure free: prescribe a pressure at one end")
@@ -182,11 +186,15 @@ class FluidStep:
         # the data array of a step: velocity block, divergence rows, and their negated transpose
         self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
                                           self.pattern.slots(*pu[::-1])], scales=[1.0, 1.0, -1.0])
+        self._extension: AxialExtension | None = None  # built at the first axially moving domain
         #: the velocity DOF of each line DOF: where the wall's u_r sits
         self.interface_dofs = prolongation_dofs(channel.prolongation)
-
-        fixed = [channel.normal_r, channel.wall_z]
-        if wall != "coupled":
+        #: the velocity DOF of the wall's u_z at each line DOF (the same node's other component)
+        comp_z, comp_r = channel.velocity.split_indices()
+        self.interface_z_dofs = comp_z[np.searchsorted(comp_r, self.interface_dofs)]
+        fixed = [channel.normal_r,
+                 self.interface_z_dofs[list(channel.ends)] if wall == "no-slip" else channel.wall_z]
+        if wall in ("rigid", "prescribed"):
             fixed.append(channel.wall_r)
         self.fixed = np.unique(np.concatenate(fixed))
         self.free = np.setdiff1d(np.arange(n), self.fixed)
@@ -202,6 +210,22 @@ class FluidStep:
         # the data with the interface terms (and the free block's values, kept by the block): kept for the run,
         # so only the latest system's matrix is valid — every coupler solves a system in the step that assembles it
         self._with_interface: np.ndarray | None = None
+
+    @property
+    def extension(self) -> AxialExtension:
+        """The harmonic extension of the lumen's d_z (factorized at its first use: only under no-slip)."""
+        if self._extension is None:
+            self._extension = AxialExtension(self.channel)
+        return self._extension
+
+    def fields(self, domain: Domain, dt: float, position: float) -> ALEFields:
+        """The ALE fields of ``domain`` in a step of ``dt`` whose geometry sits at ``position`` (radial or axial map)."""
+        if self.wall == "rigid":
+            return self._rigid
+        if domain.eta_z is None:
+            return ALEFields.at(self.channel, domain.eta, domain.velocity, dt, position)
+        return ALEFields.moving(self.channel, self.extension, domain.eta, domain.velocity, domain.eta_z,
+                                domain.velocity_z, dt, position)
 
     @property
     def ndofs(self) -> int:
@@ -280,8 +304,14 @@ class FluidStep:
             raise ValueError(f"interface terms only enter the coupled wall mode, not {self.wall!r}")
         if interface is not None and (interface.matrix.shape != (nline, nline) or interface.rhs.shape != (nline,)):
             raise ValueError(f"the interface terms must be a {nline} × {nline} matrix and a vector on the line")
+        if (domain.eta_z is None) != (domain.velocity_z is None):
+            raise ValueError("an axially moving domain needs both the lumen's d_z and its velocity")
+        if domain.eta_z is not None and (domain.eta_z.shape != (nline,) or domain.velocity_z.shape != (nline,)):
+            raise ValueError(f"the lumen's d_z and its velocity must be vectors of the interface line ({nline} DOFs)")
         if self.wall == "prescribed":
             self._check_ends(domain.velocity)
+            if domain.velocity_z is not None:
+                self._check_ends(domain.velocity_z)
         if not history:
             raise ValueError("the fluid step needs the state at tⁿ")
 
@@ -305,8 +335,7 @@ class FluidStep:
         t0 = time.perf_counter()
         ch = self.channel
         hist = tuple(levels(history[0], history[1:], scheme.old_levels))
-        fields = (self._rigid if self.wall == "rigid"
-                  else ALEFields.at(ch, domain.eta, domain.velocity, dt, scheme.geometry_position))
+        fields = self.fields(domain, dt, scheme.geometry_position)
         mass_coefficient = scheme.inertia * self.density / dt
         tractions = self.ends.tractions(times, dt, scheme, hist, fields)
         key = (mass_coefficient, *self.ends.resistances(tractions))
@@ -318,6 +347,8 @@ class FluidStep:
             if self.advection:
                 a = self._uu.trial_jets(scheme.extrapolate([s.u for s in hist]), values_only=True)
                 a[1] -= fields.wr
+                if fields.wz is not None:
+                    a[0] -= fields.wz
             velocity, div = self._element_data(fields, mass_coefficient, a)
             own = self._fill(velocity, div, div)
             self.ends.add_matrix(own, tractions, fields)
@@ -341,6 +372,8 @@ class FluidStep:
         if self.wall == "prescribed":
             fixed_values[: ch.nu] = ch.prolongation @ domain.velocity
             fixed_values[ch.normal_r] = 0.0
+            if domain.velocity_z is not None:  # no-slip: the wall's u_z is its axial velocity
+                fixed_values[self.interface_z_dofs] = domain.velocity_z
         self.assembly_s += time.perf_counter() - t0
         return FluidSystem(data, own, rhs, own_rhs, self.fixed, fixed_values[self.fixed], fields, domain, scheme,
                            dt, hist, tractions, interface, key)
@@ -378,8 +411,10 @@ class FluidStep:
         """The latest changing matrix solved (free DOFs), None before the first or for a constant matrix."""
         return self._solver.last
 
-    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray) -> FluidSystem:
-        """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode).
+    def prescribe(self, system: FluidSystem, wall_velocity: np.ndarray,
+                  wall_velocity_z: np.ndarray | None = None) -> FluidSystem:
+        """The same system with the wall's ū_r prescribed to ``wall_velocity`` (prescribed mode), and its ū_z
+        to ``wall_velocity_z`` when given (no-slip).
 
         The matrix is shared, so :meth:`solve` reuses its factorization: a
         sub-iterated coupler pays one factorization per step.
@@ -390,6 +425,9 @@ class FluidStep:
         values = np.zeros(self.ndofs)
         values[: self.channel.nu] = self.channel.prolongation @ wall_velocity
         values[self.channel.normal_r] = 0.0
+        if wall_velocity_z is not None:
+            self._check_ends(wall_velocity_z)
+            values[self.interface_z_dofs] = wall_velocity_z
         return attrs.evolve(system, fixed_values=values[self.fixed])
 
     def advance(self, system: FluidSystem, mean: np.ndarray) -> Solution:
@@ -403,18 +441,20 @@ class FluidStep:
         state = FluidState(u, mean[nu:self.channel.ndofs].copy(), self.channel.wall_trace(u), ends)
         return Solution(mean, state)
 
-    def reaction(self, system: FluidSystem, mean: np.ndarray) -> np.ndarray:
-        """The fluid's own residual A x̄ − b on the wall's u_r rows, as a line vector.
+    def reaction(self, system: FluidSystem, mean: np.ndarray, axial: bool = False) -> np.ndarray:
+        """The fluid's own residual A x̄ − b on the wall's u_r rows (u_z rows if ``axial``), as a line vector.
 
         It is minus the force the fluid exerts on the wall over the step,
         tested with each line basis function (dyn/cm per unit depth).
         """
         residual = self.pattern.matrix(system.own) @ mean - system.own_rhs
+        if axial:
+            return residual[self.interface_z_dofs]
         return self.channel.restriction @ residual[: self.channel.nu]
 
     # -- the energy identity ----------------------------------------------------
     def identity(self, system: FluidSystem, solution: Solution, eta_old: np.ndarray,
-                 eta_new: np.ndarray) -> dict[str, float]:
+                 eta_new: np.ndarray, axial: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
         """Every term of the step's energy identity, from quadrature of the fields and the load vectors.
 
         Testing the step with x̄ (q_J(x) = ½ρ_f∫J|x|², E the scheme's stored energy):
@@ -427,6 +467,9 @@ class FluidStep:
         ∂_t J = (J^{n+1} − Jⁿ)/Δt, the kinematically coupled scheme's choice.
         ``interface`` = Δt v̄·(R v̄ − r) is the power handed to the coupler's
         interface terms; ``wall.work`` the power of a prescribed wall.
+        Under an axial mesh motion ``axial`` holds the lumen's d_z at tⁿ and
+        tⁿ⁺¹: the kinetic energies are weighted by the volume elements of the
+        axially moved domains.
 
         Where each term comes from: the kinetic, numerical and geometric
         terms and the viscous dissipation by quadrature of the fields at the
@@ -442,8 +485,12 @@ class FluidStep:
         us = [solution.state.u, *[s.u for s in system.history]]
         ubar = solution.mean[: ch.nu]
         R = ch.radius
-        J_old = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R)
-        J_new = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R)
+        if axial is None:
+            J_old = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R)
+            J_new = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R)
+        else:  # ``axial``: the lumen's d_z at tⁿ and tⁿ⁺¹
+            J_old = volume_element(ch, deformation(ch, self.extension, eta_old, axial[0]))
+            J_new = volume_element(ch, deformation(ch, self.extension, eta_new, axial[1]))
 
         def q(J):
             return lambda x: quad.kinetic(J, x)
