@@ -177,6 +177,10 @@ def test_steps_land_on_a_tables_rows_and_a_pulses_end():
     class State:
         t, n, previous = 0.42, 5, None
 
+        @classmethod
+        def history(cls, levels):
+            return [cls] * levels
+
     assert clock.landing(0.42) == pytest.approx(0.5) and clock.window(State, 0.2).t1 == clock.landing(0.42)
     assert clock.landing(0.5) == pytest.approx(0.55)  # the pulse's end comes before the next row (0.7)
     assert clock.landing(0.55) == pytest.approx(0.7)
