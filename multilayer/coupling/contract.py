@@ -85,7 +85,6 @@ class Coupler(ABC):
                    else "choose 'monolithic' with scheme = 'crank-nicolson' or 'bdf2', or 'kinematic-splitting' "
                         "with scheme = 'crank-nicolson'")
         why = "first order" if self.scheme.order == 1 else f"not estimated in {name}"
-
         reason = (f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
                   f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is {why}); "
                   f"{offered}, or remove time.tolerance")
@@ -105,7 +104,6 @@ class Coupler(ABC):
 
 
     def fluid_wall(self, case: Case) -> str:
-
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""
         return "coupled"
 

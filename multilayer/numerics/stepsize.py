@@ -90,7 +90,6 @@ def carried(scheme: str, k: Sequence[float]) -> float:
 
 
 def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float],
-
                 scheme: str = "crank-nicolson") -> np.ndarray:
     """The local error of ``scheme``'s x^{n+1} = ``new`` (module docstring)."""
     return milne(scheme, k) * (new - predictor(old, k))

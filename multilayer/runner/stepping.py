@@ -211,5 +211,4 @@ def iterate_steps(setup: Setup, coupler: Coupler, state: State, tally: Tally, pr
                 if not note:
                     raise
                 raise RunFailed(f"{exc}{note}") from exc
-
             yield step
