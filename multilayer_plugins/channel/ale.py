@@ -123,16 +123,17 @@ class ALEFields:
         if not dt > 0.0:
             raise ValueError(f"an axial mesh motion needs the step's Δt > 0, got {dt!r}")
         R, shape, rhat = channel.radius, channel.quad_shape, channel.rhat
-        F = deformation(channel, extension, eta, eta_z)
-        before = volume_element(channel, deformation(channel, extension, eta - position * dt * v,
-                                                     eta_z - position * dt * v_z))
-        after = volume_element(channel, deformation(channel, extension, eta + (1.0 - position) * dt * v,
-                                                    eta_z + (1.0 - position) * dt * v_z))
-        det = F[0][0] * F[1][1] - F[0][1] * F[1][0]
+        D, W = extension.at_quad(eta_z), extension.at_quad(v_z)  # D_z and its velocity (value, ∂_ẑ, ∂_r̂)
+
+        def moved(s: float) -> tuple:  # F of the domain moved by s·Δt from this one
+            return deformation(channel, eta + s * dt * v, tuple(d + s * dt * w for d, w in zip(D, W)))
+
+        F = deformation(channel, eta, D)
+        det = determinant(F)
         if np.min(det) <= 0.0:
             raise ValueError(f"the axial mesh motion folds the fluid domain: min det F = {np.min(det):.3g}")
+        before, after = volume_element(channel, moved(-position)), volume_element(channel, moved(1.0 - position))
         v_q = (channel.eta_at_quad @ v).reshape(shape)
-        stretched = F[1][1] * R
         return cls(
             J=volume_element(channel, F),
             gz=-F[1][0] / det,
@@ -141,11 +142,11 @@ class ALEFields:
             wr=v_q * rhat / R,
             J_in=1.0 + float(eta[channel.ends[0]]) / R,
             J_out=1.0 + float(eta[channel.ends[1]]) / R,
-            hoop=1.0 / (stretched / R * rhat) if channel.geometry.radial_power else None,
+            hoop=1.0 / (F[1][1] * rhat) if channel.geometry.radial_power else None,
             hoops=channel.geometry.radial_power,
             gzz=F[1][1] / det,
             grz=-F[0][1] / det,
-            wz=extension.at_quad(v_z)[0],
+            wz=W[0],
         )
 
     @classmethod
@@ -166,18 +167,26 @@ class ALEFields:
         return {"J": self.J, "hoop": self.hoop}
 
 
-def deformation(channel: Channel, extension: AxialExtension, eta: np.ndarray, eta_z: np.ndarray) -> tuple:
-    """F = I + ∇̂D at the quadrature points for the lumen's (``eta_z``, ``eta``): nested tuples [i][j] = ∂_ĵ x_i."""
+def deformation(channel: Channel, eta: np.ndarray, D_z: tuple) -> tuple:
+    """F = I + ∇̂D at the quadrature points: nested tuples [i][j] = ∂_ĵ x_i.
+
+    ``eta`` is the lumen's η (a line vector), ``D_z`` the axial displacement's
+    (value, ∂_ẑ, ∂_r̂) at the quadrature points
+    (:meth:`~multilayer_plugins.channel.extension.AxialExtension.at_quad` of the lumen's d_z).
+    """
     R, shape, rhat = channel.radius, channel.quad_shape, channel.rhat
     eta_q = (channel.eta_at_quad @ eta).reshape(shape)
     eta_zq = (channel.eta_z_at_quad @ eta).reshape(shape)
     if np.min(R + eta_q) <= 0.0:
         raise ValueError(f"the wall displacement closes the channel: min(R + η) = {np.min(R + eta_q):.3g} cm")
-    _, D_zhat, D_rhat = extension.at_quad(eta_z)
-    return ((1.0 + D_zhat, D_rhat), (rhat * eta_zq / R, (R + eta_q) / R))
+    return ((1.0 + D_z[1], D_z[2]), (rhat * eta_zq / R, (R + eta_q) / R))
+
+
+def determinant(F: tuple) -> np.ndarray:
+    """det F of a 2 × 2 field in nested tuples."""
+    return F[0][0] * F[1][1] - F[0][1] * F[1][0]
 
 
 def volume_element(channel: Channel, F: tuple) -> np.ndarray:
     """J = det F · (r/r̂)ᵏ of the map with :func:`deformation` F (r/r̂ = (R + η)/R = F_rr)."""
-    det = F[0][0] * F[1][1] - F[0][1] * F[1][0]
-    return det * F[1][1] ** channel.geometry.radial_power
+    return determinant(F) * F[1][1] ** channel.geometry.radial_power

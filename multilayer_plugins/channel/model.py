@@ -198,7 +198,7 @@ class ChannelFluid(Fluid):
         ch = self.channel
         eta = self._eta(eta)
         if eta_z is not None:
-            J = volume_element(ch, deformation(ch, self.discrete.extension, eta, eta_z))
+            J = volume_element(ch, deformation(ch, eta, self.discrete.extension.at_quad(eta_z)))
             return fluid_kinetic(ch, self.density, J, state.u)
         fields = ALEFields.at(ch, eta, np.zeros_like(eta))
         return fluid_kinetic(ch, self.density, fields.J, state.u)

@@ -489,8 +489,8 @@ class FluidStep:
             J_old = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_old).reshape(ch.quad_shape) / R)
             J_new = ch.geometry.stretch(1.0 + (ch.eta_at_quad @ eta_new).reshape(ch.quad_shape) / R)
         else:  # ``axial``: the lumen's d_z at tⁿ and tⁿ⁺¹
-            J_old = volume_element(ch, deformation(ch, self.extension, eta_old, axial[0]))
-            J_new = volume_element(ch, deformation(ch, self.extension, eta_new, axial[1]))
+            J_old = volume_element(ch, deformation(ch, eta_old, self.extension.at_quad(axial[0])))
+            J_new = volume_element(ch, deformation(ch, eta_new, self.extension.at_quad(axial[1])))
 
         def q(J):
             return lambda x: quad.kinetic(J, x)
