@@ -172,8 +172,8 @@ def quasi_static(out, ramp, *sets, static=STATIC, lumen="radial"):
 
 
 def test_slow_pressure_ramp_approaches_the_static_band(tmp_path):
-    """Under the radial gluing.  Measured (8 × 2 fluid cells, 2 band cells, P2, Δt = 1e-4, monolithic CN): at the ramp's end
-    |η/η_static − 1| = 1.9e-2, 4.4e-3, 9.4e-4 for ramps of 5, 10, 20 ms (orders 2.08, 2.21 in the ramp time,
+    """Under the radial gluing.  Measured (8 × 2 fluid cells, 2 band cells, P2, Δt = 1e-4, monolithic CN): at the
+    ramp's end |η/η_static − 1| = 1.9e-2, 4.4e-3, 9.4e-4 for ramps of 5, 10, 20 ms (orders 2.08, 2.21 in the ramp time,
     the quasi-static error ~ (T_natural/T_ramp)²); the largest deviation over the ramp 1.9e-2, 5.0e-3, 1.2e-3.
     The static field, linear in r, is in the P1 and P2 spaces: 16 × 4 cells with 4 band cells change the
     10 ms error by 2 % only (4.47e-3), Δt = 5e-5 by 5 % (4.60e-3): it is the ramp's dynamics, not the mesh."""
@@ -203,8 +203,9 @@ def lame_clamped(p, a=0.5, h=H):
 
 
 def test_slow_pressure_ramp_in_a_tube_approaches_lame(tmp_path):
-    """The same scene (radial gluing) in a tube (``geometry.kind = "axisymmetric"``): the lumen approaches Lamé's d_r(a), 5.8 %
-    above the planar band's p H/(λ+2μ) for this band (ν = 0.45, H/a = 0.2: the hoop strain d_r/r enters tr ε).
+    """The same scene (radial gluing) in a tube (``geometry.kind = "axisymmetric"``): the lumen approaches Lamé's
+    d_r(a), 5.8 % above the planar band's p H/(λ+2μ) for this band (ν = 0.45, H/a = 0.2: the hoop strain d_r/r
+    enters tr ε).
     Measured (the mesh of test_slow_pressure_ramp_approaches_the_static_band): |η/η_Lamé − 1| at the ramp's
     end = 3.1e-2, 4.6e-3, 2.5e-4 for ramps of 5, 10, 20 ms (orders 2.7, 4.2); against the planar value the
     10 and 20 ms runs are 6.3 % and 5.8 % off, so the test tells the two apart.

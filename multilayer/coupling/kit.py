@@ -28,9 +28,9 @@ def lumen_param():
     """The ``lumen`` parameter of a coupler that takes a fluid directly on a thick band."""
     return Param("lumen", type=str, default="no-slip", choices=LUMEN_CONDITIONS,
                  doc="a thick first layer at the fluid: 'no-slip' (the default) glues both components, u = ∂_t d "
-                     "on the lumen, and the fluid domain follows its axial motion too; 'radial' glues only its radial motion, "
-                     "u = (0, ∂_t d_r) and d_z = 0 on the lumen (the seed's radial ALE map); ignored under a thin "
-                     "first layer")
+                     "on the lumen, and the fluid domain follows its axial motion too; 'radial' glues only its "
+                     "radial motion, u = (0, ∂_t d_r) and d_z = 0 on the lumen (the seed's radial ALE map); "
+                     "ignored under a thin first layer")
 
 
 def coupled_case_problems(name: str, case) -> list[str]:

@@ -219,7 +219,8 @@ class FluidStep:
         return self._extension
 
     def fields(self, domain: Domain, dt: float, position: float) -> ALEFields:
-        """The ALE fields of ``domain`` in a step of ``dt`` whose geometry sits at ``position`` (radial or axial map)."""
+        """The ALE fields of ``domain`` in a step of ``dt`` whose geometry sits at ``position`` (radial or axial
+        map)."""
         if self.wall == "rigid":
             return self._rigid
         if domain.eta_z is None:
