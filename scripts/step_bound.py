@@ -1,0 +1,57 @@
+"""The fewest steps any step distribution needs for a fixed-Δt run's error, over the fixed run's count.
+
+    python scripts/step_bound.py RUN_FOLDER --probes eta_z1,eta_z2 [--stride 4]
+
+From a resolved run's ``series.csv`` (a reference), g(t) = the largest over the
+probes of |x'''(t)| / max_t |x| (third differences of every ``stride``-th row).
+A second-order rule's local errors are c·kₙ³·g(tₙ); summed over a run of
+total error E, the fewest steps is ∫ g^½ dt / sqrt(E/c) (steps kₙ ∝ g^(−½),
+by Lagrange), and even steps need sqrt(T ∫ g dt / (E/c)), so the best
+saving any controller can reach at equal error is the ratio
+
+    (∫ g^½ dt) / sqrt(T ∫ g dt)  ≤ 1        (Cauchy–Schwarz; 1 for an even g).
+
+docs/accuracy.md, "Physiological waveform", uses it: a waveform busy all
+through its cycle leaves adaptive steps nothing to save.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from multilayer.results.reading import read_run
+
+
+def step_ratio(t: np.ndarray, series: list[np.ndarray]) -> float:
+    """The ratio of the module docstring from the even samples ``t`` of each probe's ``series``.
+
+    >>> t = np.linspace(0.0, 1.0, 401)
+    >>> round(step_ratio(t, [t ** 3]), 2)            # x''' even: nothing to save
+    1.0
+    >>> s = np.minimum(t, 0.5)                        # x''' = 1 on the first half, 0 on the second (C²)
+    >>> round(step_ratio(t, [s ** 3 / 6 + s ** 2 / 2 * (t - s) + s / 2 * (t - s) ** 2]), 2)   # 1/√2
+    0.71
+    """
+    h = t[1] - t[0]
+    g = np.max([np.abs(np.diff(x, 3)) / h ** 3 / np.max(np.abs(x)) for x in series], axis=0)
+    return float(np.sum(np.sqrt(g)) * h / np.sqrt((t[-1] - t[0]) * np.sum(g) * h))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("run", type=Path)
+    ap.add_argument("--probes", required=True, help="comma list of probe names")
+    ap.add_argument("--stride", type=int, default=4, help="use every stride-th row (smooths the differences)")
+    args = ap.parse_args(argv)
+    run = read_run(args.run.name, args.run)
+    t = np.asarray(run.t)[:: args.stride]
+    series = [np.asarray(run.series[p])[:: args.stride] for p in args.probes.split(",")]
+    print(f"h = {t[1] - t[0]:.3g} s: fewest steps / even steps at equal error = {step_ratio(t, series):.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
