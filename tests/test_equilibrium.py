@@ -40,6 +40,13 @@ def test_a_tubes_membrane_takes_the_pressure_on_its_moved_place():
     assert errors[1] < errors[0] / 7.0 and errors[1] < 1e-5, errors
 
 
+def test_a_pressure_beyond_what_a_tubes_wall_holds_is_refused_by_name():
+    """Once P⁰/(R C1) > (π/L)² the pressure on the moved lumen outweighs the membrane's lowest mode's stiffness
+    (an equilibrium past buckling, if any): the iteration diverges and says so."""
+    with pytest.raises(ValueError, match="initial.pressure = 1e[+]06 did not settle .* a smaller initial.pressure"):
+        lumen(6, 'geometry.kind="axisymmetric"', "initial.pressure=1e6")
+
+
 @pytest.mark.parametrize("case, pressure, coupler", [
     ("physiological-rcr", 2000.0, '{model="monolithic",scheme="crank-nicolson"}'),
     ("physiological-rcr", 2000.0, '{model="kinematic-splitting",scheme="crank-nicolson",beta=1}'),

@@ -52,7 +52,9 @@ def static_deflection(stack: Stack, pressure: float, external: float) -> np.ndar
         if k == 0 or change <= ROUND_OFF * size:
             return d
     raise ValueError(f"the wall's static equilibrium under initial.pressure = {pressure:g} did not settle in "
-                     f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm)")
+                     f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm): the pressure on the moved "
+                     f"lumen softens the wall (by P⁰/R per unit η) more than its stiffness holds; a smaller "
+                     f"initial.pressure")
 
 
 def lumen_force(space: Any, pressure: float, eta: np.ndarray) -> np.ndarray:
