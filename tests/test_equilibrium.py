@@ -66,14 +66,17 @@ def test_a_run_started_at_equilibrium_under_constant_loads_stays_at_rest(tmp_pat
     assert max(np.max(np.abs(data.series[q])) for q in ("q_in", "q_out")) <= 1e-8
 
 
-@pytest.mark.parametrize("sets, words", [
-    (("initial.pressure='high'",), "initial.pressure = 'high'"),
-    (("initial.pressure=1000.0", 'initial.displacement.r="0.01"'), "leave initial.displacement out"),
-    (("initial.presure=1000.0",), "did you mean 'pressure'"),
+@pytest.mark.parametrize("case, sets, words", [
+    ("pulse-membrane", ("initial.pressure='high'",), "initial.pressure = 'high'"),
+    ("pulse-membrane", ("initial.pressure=nan",), "initial.pressure = nan: expected a number"),
+    ("pulse-membrane", ("initial.pressure=1000.0", 'initial.displacement.r="0.01"'), "leave initial.displacement out"),
+    ("pulse-membrane", ("initial.presure=1000.0",), "did you mean 'pressure'"),
+    ("membrane-mode", ("initial.pressure=1000.0",), "the case has not both"),     # no fluid
+    ("poiseuille-rigid", ("initial.pressure=1000.0",), "the case has not both"),  # no wall
 ])
-def test_a_bad_initial_pressure_is_refused_with_its_key_path(sets, words):
+def test_a_bad_initial_pressure_is_refused_with_its_key_path(case, sets, words):
     with pytest.raises(CaseError) as info:
-        load_case(CASES / "pulse-membrane.toml", sets)
+        load_case(CASES / f"{case}.toml", sets)
     assert any(words in str(p) for p in info.value.problems), [str(p) for p in info.value.problems]
 
 

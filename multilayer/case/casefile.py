@@ -233,7 +233,7 @@ class _Validator:
         end = time.get("end", 1.0)
         loads = parts["loads"] = self.loads(data.get("loads", {}), constants, end)
         mark = self.mark()
-        initial = self.initial(data.get("initial", {}), constants)
+        initial = self.initial(data.get("initial", {}), constants, fluid is not None and bool(layers))
         parts["initial"] = self.part("initial", mark, lambda: initial)
         mark = self.mark()
         output = self.output(data.get("output", {}), constants, fluid, layers)
@@ -522,8 +522,8 @@ class _Validator:
             motion, "loads.wall_motion", constants, Domain({"t": (0.0, end), "z": (0.0, constants["L"])}))
         return Loads(**pressures, wall_motion=self.part("loads.wall_motion", mark, lambda: wall_motion))
 
-    def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
-        pressure, problems = initial_pressure(data)
+    def initial(self, data: Any, constants: Mapping[str, float], coupled: bool) -> Initial:
+        pressure, problems = initial_pressure(data, coupled)
         self.add(problems)
         data = data if isinstance(data, Mapping) else {}
         fields = {}

@@ -87,11 +87,20 @@ leave initial.displacement out
                     f"leave {given} out")]
 
 
-def initial_pressure(data: Any) -> tuple[float | None, list[Problem]]:
+def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, list[Problem]]:
     """The ``[initial]`` table's ``pressure`` (None: unset) and its problems: the table's keys (``displacement``
-    and ``velocity`` are read by the caller), and :func:`equilibrium_problems`."""
+    and ``velocity`` are read by the caller), a case without both a fluid and a wall (``coupled`` False: there
+    is no fluid to rest at it, or no wall to hold it), and :func:`equilibrium_problems`.
+
+    >>> print(*initial_pressure({"pressure": 2000.0}, coupled=False)[1])
+    initial.pressure = 2000.0: a fluid at rest at a pressure against a wall, but the case has not both; \
+leave initial.pressure out
+    """
     values, problems = check_params(data, INITIAL, "initial", extra=("displacement", "velocity"))
     pressure = values.get("pressure")
+    if pressure is not None and not coupled:
+        problems.append(Problem("initial.pressure", pressure, "a fluid at rest at a pressure against a wall, but "
+                                "the case has not both", "leave initial.pressure out"))
     return pressure, problems + (equilibrium_problems(pressure, data) if isinstance(data, dict) else [])
 
 
