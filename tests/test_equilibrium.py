@@ -40,6 +40,16 @@ def test_a_tubes_membrane_takes_the_pressure_on_its_moved_place():
     assert errors[1] < errors[0] / 7.0 and errors[1] < 1e-5, errors
 
 
+def test_the_fluid_starts_at_rest_at_the_pressure():
+    """The state at t = 0 (a snapshot's, a probe's): p = P⁰ everywhere, u = 0."""
+    case = load_case(CASES / "physiological-rcr.toml", ("mesh.nz=12", "mesh.nr=3", "initial.pressure=2000.0"))
+    setup = Setup.build(case, Registry.load())
+    state = setup.initial_state()
+    values = setup.probe_values(setup.probe_rows(case.output.probes), state)
+    assert all(abs(values[p] - 2000.0) <= 1e-12 * 2000.0 for p in ("p_z1", "p_z3", "p_z5")), values
+    assert not np.any(state.fluid.u)
+
+
 def test_a_pressure_beyond_what_a_tubes_wall_holds_is_refused_by_name():
     """Once P⁰/(R C1) > (π/L)² the pressure on the moved lumen outweighs the membrane's lowest mode's stiffness
     (an equilibrium past buckling, if any): the iteration diverges and says so."""

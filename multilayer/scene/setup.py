@@ -124,7 +124,8 @@ class Setup:
             v0 = self.wall.interpolate(init.velocity_z, init.velocity_r)
             wall = WallState(self.stack.zero_fixed(d0), self.stack.zero_fixed(v0))
         if self.fluid is not None:
-            fluid = self.fluid.initial_state()
+            pressure = self.case.initial.pressure
+            fluid = self.fluid.initial_state() if pressure is None else self.fluid.initial_state(pressure=pressure)
             if wall is not None:
                 R = self.wall.restrictions[LUMEN]
                 eta, v = R @ wall.d, R @ wall.V
