@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import attrs
 import numpy as np
 
 from multilayer.coupling.clock import Window, march, old_levels
@@ -58,6 +59,7 @@ from multilayer.numerics.stepsize import local_error
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
+from multilayer.scene.equilibrium import lumen_force
 from multilayer.scene.state import State
 from multilayer.wall.stack import LUMEN
 
@@ -85,6 +87,15 @@ class KinematicSplitting(Coupler):
     def check_case(self, case) -> list[str]:
         return (super().check_case(case) + coupled_case_problems(self.name, case)
                 + thin_lumen_problems(self.name, case, THICK_LUMEN))
+
+    def initial_state(self, setup) -> State:
+        """The setup's state at t = 0; with ``[initial] pressure`` the fluid's force on the thin layer at rest
+        there as the last step's τ, so that a run started at equilibrium under constant loads stays there."""
+        state = super().initial_state(setup)
+        pressure = setup.case.initial.pressure
+        if pressure is None:
+            return state
+        return attrs.evolve(state, extra={**state.extra, "traction": lumen_force(setup.wall, pressure, state.eta)})
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state, LUMEN),

@@ -1,6 +1,6 @@
 """The fewest steps any step distribution needs for a fixed-Δt run's error, over the fixed run's count.
 
-    python scripts/step_bound.py RUN_FOLDER --probes eta_z1,eta_z2 [--stride 4]
+    python scripts/step_bound.py RUN_FOLDER --probes eta_z1,eta_z2 [--stride 4] [--between T0,T1]
 
 From a resolved run's ``series.csv`` (a reference), g(t) = the largest over the
 probes of |x'''(t)| / max_t |x| (third differences of every ``stride``-th row).
@@ -45,10 +45,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("run", type=Path)
     ap.add_argument("--probes", required=True, help="comma list of probe names")
     ap.add_argument("--stride", type=int, default=4, help="use every stride-th row (smooths the differences)")
+    ap.add_argument("--between", default=None, help="T0,T1: only the rows with T0 ≤ t ≤ T1 (one cycle, say)")
     args = ap.parse_args(argv)
     run = read_run(args.run.name, args.run)
-    t = np.asarray(run.t)[:: args.stride]
-    series = [np.asarray(run.series[p])[:: args.stride] for p in args.probes.split(",")]
+    t0, t1 = (float(x) for x in args.between.split(",")) if args.between else (-np.inf, np.inf)
+    within = (np.asarray(run.t) >= t0 - 1e-12) & (np.asarray(run.t) <= t1 + 1e-12)
+    t = np.asarray(run.t)[within][:: args.stride]
+    series = [np.asarray(run.series[p])[within][:: args.stride] for p in args.probes.split(",")]
     print(f"h = {t[1] - t[0]:.3g} s: fewest steps / even steps at equal error = {step_ratio(t, series):.3f}")
     return 0
 

@@ -23,7 +23,7 @@ from multilayer.case.contracts import contract_problem
 from multilayer.case.ends import END_KEYS, build_end
 from multilayer.case.files import read_case
 from multilayer.case.grid import sweep_table
-from multilayer.case.initial import closing_problems
+from multilayer.case.initial import closing_problems, initial_data, initial_pressure
 from multilayer.case.keys import (
     _blame_overrides,
     apply_overrides,
@@ -233,7 +233,7 @@ class _Validator:
         end = time.get("end", 1.0)
         loads = parts["loads"] = self.loads(data.get("loads", {}), constants, end)
         mark = self.mark()
-        initial = self.initial(data.get("initial", {}), constants)
+        initial = self.initial(data.get("initial", {}), constants, fluid is not None and bool(layers))
         parts["initial"] = self.part("initial", mark, lambda: initial)
         mark = self.mark()
         output = self.output(data.get("output", {}), constants, fluid, layers)
@@ -275,10 +275,7 @@ class _Validator:
                 **{key: getattr(loads, key).to_dict() for key in WALL_LOAD_KEYS},
                 "wall_motion": None if loads.wall_motion is None else str(loads.wall_motion),
             },
-            "initial": {
-                "displacement": {"r": str(initial.displacement_r), "z": str(initial.displacement_z)},
-                "velocity": {"r": str(initial.velocity_r), "z": str(initial.velocity_z)},
-            },
+            "initial": initial_data(initial),
             "output": {
                 "every": output.every,
                 "probes": [
@@ -525,8 +522,10 @@ class _Validator:
             motion, "loads.wall_motion", constants, Domain({"t": (0.0, end), "z": (0.0, constants["L"])}))
         return Loads(**pressures, wall_motion=self.part("loads.wall_motion", mark, lambda: wall_motion))
 
-    def initial(self, data: Any, constants: Mapping[str, float]) -> Initial:
-        data = self.table(data, "initial", ("displacement", "velocity"))
+    def initial(self, data: Any, constants: Mapping[str, float], coupled: bool) -> Initial:
+        pressure, problems = initial_pressure(data, coupled)
+        self.add(problems)
+        data = data if isinstance(data, Mapping) else {}
         fields = {}
         for name in ("displacement", "velocity"):
             part = self.table(data.get(name, {}), f"initial.{name}", ("r", "z"))
@@ -536,7 +535,7 @@ class _Validator:
                 fields[f"{name}_{component}"] = self.formula(
                     part.get(component, "0"), f"initial.{name}.{component}", constants, wall
                 )
-        return Initial(**fields)
+        return Initial(**fields, pressure=pressure)
 
     def output(self, data: Any, constants: Mapping[str, float], fluid: ModelSpec | None, layers: list[LayerSpec]) -> Output:
         values, problems = check_params(data, OUTPUT, "output", extra=("probes",))

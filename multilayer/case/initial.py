@@ -1,4 +1,5 @@
-"""The initial wall against the geometry: a lumen displacement that closes the channel is refused at validation.
+"""The initial wall against the geometry: a lumen displacement that closes the channel is refused at validation;
+a wall given both as a displacement and as the static equilibrium under ``initial.pressure`` too.
 
 ``initial.displacement.r`` is judged on its domain like every formula (finite
 and real); here it is also weighed against the channel it displaces: the run
@@ -13,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from multilayer.case.model import Geometry, Initial, Limits, MeshSpec
-from multilayer.plugin.problems import Problem
+from multilayer.case.schema import INITIAL
+from multilayer.plugin.problems import Problem, check_params
 
 WHERE = "initial.displacement.r"
 #: At most this many points along z are evaluated (evenly spaced when the lumen has more nodes).
@@ -66,3 +68,44 @@ R + η ≤ 0 closes the channel; the initial radial displacement must keep R + �
                                          f"{limit:.6g} cm: the run would stop at once",
                             "a smaller displacement, or a larger solver.max_displacement")]
     return []
+
+
+def equilibrium_problems(pressure: float | None, initial: Any) -> list[Problem]:
+    """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.scene.equilibrium`) given together
+    with the ``initial`` table's ``displacement`` or ``velocity``: the wall would be given twice.
+
+    >>> print(*equilibrium_problems(2000.0, {"displacement": {"r": "0.01"}}))
+    initial.pressure = 2000.0: sets the initial wall (its static equilibrium), and initial.displacement too; \
+leave initial.displacement out
+    >>> equilibrium_problems(None, {"displacement": {"r": "0.01"}}), equilibrium_problems(2000.0, {})
+    ([], [])
+    """
+    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity") if name in initial)
+    if pressure is None or not given:
+        return []
+    return [Problem("initial.pressure", pressure, f"sets the initial wall (its static equilibrium), and {given} too",
+                    f"leave {given} out")]
+
+
+def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, list[Problem]]:
+    """The ``[initial]`` table's ``pressure`` (None: unset) and its problems: the table's keys (``displacement``
+    and ``velocity`` are read by the caller), a case without both a fluid and a wall (``coupled`` False: there
+    is no fluid to rest at it, or no wall to hold it), and :func:`equilibrium_problems`.
+
+    >>> print(*initial_pressure({"pressure": 2000.0}, coupled=False)[1])
+    initial.pressure = 2000.0: a fluid at rest at a pressure against a wall, but the case has not both; \
+leave initial.pressure out
+    """
+    values, problems = check_params(data, INITIAL, "initial", extra=("displacement", "velocity"))
+    pressure = values.get("pressure")
+    if pressure is not None and not coupled:
+        problems.append(Problem("initial.pressure", pressure, "a fluid at rest at a pressure against a wall, but "
+                                "the case has not both", "leave initial.pressure out"))
+    return pressure, problems + (equilibrium_problems(pressure, data) if isinstance(data, dict) else [])
+
+
+def initial_data(initial: Initial) -> dict[str, Any]:
+    """``initial`` as the resolved case writes it; ``pressure`` only when set (a case without it keeps its hash)."""
+    return {"displacement": {"r": str(initial.displacement_r), "z": str(initial.displacement_z)},
+            "velocity": {"r": str(initial.velocity_r), "z": str(initial.velocity_z)},
+            **({} if initial.pressure is None else {"pressure": initial.pressure})}

@@ -107,12 +107,15 @@ class Loads:
 
 @attrs.frozen
 class Initial:
-    """Initial wall displacement and velocity, as formulas in (z, r)."""
+    """Initial wall displacement and velocity, as formulas in (z, r); or, with ``pressure``, the fluid at rest at
+    that uniform pressure (dyn/cm²) and the wall in static equilibrium under it
+    (:mod:`multilayer.scene.equilibrium`)."""
 
     displacement_z: Formula
     displacement_r: Formula
     velocity_z: Formula
     velocity_r: Formula
+    pressure: float | None = None
 
 
 @attrs.frozen

@@ -67,6 +67,9 @@ PROBE = (
           doc="radial position in the reference configuration: Lagrangian in the wall, r̂ of the ALE map in the fluid"),
     Param("line", type=int, ge=0, le=MAX_LINES, default=None, doc="interface line of eta/v (0 = lumen)"),
 )
+INITIAL = (Param("pressure", "P⁰", "dyn/cm²", default=None,
+                 doc="the fluid at rest at this uniform pressure and the wall in static equilibrium under it (and the "
+                     "external pressure at t = 0); unset: the wall as initial.displacement gives it"),)
 OUTPUT = (Param("every", type=int, ge=0, le=MAX_STEPS, default=0, doc="snapshot cadence in steps (0: none)"),)
 SOLVER = (
     Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),

@@ -147,7 +147,8 @@ class Fluid(ABC):
 
     @abstractmethod
     def initial_state(self) -> Any:
-        """The fluid at rest."""
+        """The fluid at rest; a fluid that can start at rest at a uniform pressure (``[initial] pressure``)
+        takes ``pressure=`` (dyn/cm²) as well, called so only when a case sets it."""
 
     def state_to_data(self, state: Any) -> dict[str, Any]:
         """``state`` as data a checkpoint can hold: a mapping of arrays, numbers, strings, None, lists,

@@ -21,6 +21,7 @@ from multilayer.fluid.contract import ENDS, Fluid, FluidSetup
 from multilayer.geometry.contract import Geometry
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.plugin.registry import Registry
+from multilayer.scene.equilibrium import static_deflection
 from multilayer.scene.state import State, WallState
 from multilayer.wall.checks import LayerError, abstract_problem, raised, type_problem
 from multilayer.wall.layer import Layer
@@ -108,15 +109,23 @@ class Setup:
         return setup
 
     def initial_state(self) -> State:
-        """t = 0: the case's initial wall (essential DOFs zeroed), the fluid at rest on the wall's domain."""
+        """t = 0: the case's initial wall (essential DOFs zeroed), the fluid at rest on the wall's domain.
+
+        With ``[initial] pressure`` the wall is the static deflection under it (and the external pressure at
+        t = 0): :func:`~multilayer.scene.equilibrium.static_deflection`.
+        """
         wall = v = eta = fluid = None
         if self.wall is not None:
             init = self.case.initial
-            d0 = self.wall.interpolate(init.displacement_z, init.displacement_r)
+            if init.pressure is None:
+                d0 = self.wall.interpolate(init.displacement_z, init.displacement_r)
+            else:
+                d0 = static_deflection(self.stack, init.pressure, self.case.loads.external.value(0.0))
             v0 = self.wall.interpolate(init.velocity_z, init.velocity_r)
             wall = WallState(self.stack.zero_fixed(d0), self.stack.zero_fixed(v0))
         if self.fluid is not None:
-            fluid = self.fluid.initial_state()
+            pressure = self.case.initial.pressure
+            fluid = self.fluid.initial_state() if pressure is None else self.fluid.initial_state(pressure=pressure)
             if wall is not None:
                 R = self.wall.restrictions[LUMEN]
                 eta, v = R @ wall.d, R @ wall.V

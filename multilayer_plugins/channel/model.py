@@ -122,9 +122,11 @@ class ChannelFluid(Fluid):
         return {"assembly": self.discrete.assembly_s, "ledger": self.discrete.ledger_s}
 
     def initial_state(
-        self, velocity: Callable[[np.ndarray, np.ndarray], tuple] | None = None, eta: np.ndarray | None = None
+        self, velocity: Callable[[np.ndarray, np.ndarray], tuple] | None = None, eta: np.ndarray | None = None,
+        pressure: float = 0.0,
     ) -> FluidState:
-        """Rest, or the interpolant of ``velocity(z, r) -> (u_z, u_r)`` given in the physical domain of ``eta``."""
+        """Rest, or the interpolant of ``velocity(z, r) -> (u_z, u_r)`` given in the physical domain of ``eta``;
+        the pressure uniform at ``pressure``."""
         ch = self.channel
         eta = self._eta(eta)
         u = np.zeros(ch.nu)
@@ -135,7 +137,8 @@ class ChannelFluid(Fluid):
                 return velocity(zh, rh * (R + probes.wall_displacement(ch, eta, zh)) / R)
 
             u = ch.interpolate(on_reference)
-        return FluidState(u, np.zeros(ch.pressure.N), ch.wall_trace(u), self.discrete.ends.initial_state())
+        p = np.full(ch.pressure.N, float(pressure))
+        return FluidState(u, p, ch.wall_trace(u), self.discrete.ends.initial_state())
 
     def state_to_data(self, state: FluidState) -> dict[str, Any]:
         """u, p, v and each end's state as its condition writes it (a checkpoint's data)."""

@@ -1,0 +1,70 @@
+"""The wall's static equilibrium under a fluid at rest at a uniform pressure: a start without ringing.
+
+A case with ``[initial] pressure = P⁰`` starts with the fluid at rest at the
+uniform pressure P⁰ and the wall already deflected under it (an artery
+inflated at its diastolic pressure), rather than at rest undeformed with the
+loads switched on at full size at t = 0.  The wall solves K d = f with its
+essential DOFs held, where f is P⁰ on the lumen and the external pressure
+at t = 0 on the outer surface.  The fluid's pressure acts on the lumen's
+deformed place r = R + η: under a measure c·rᵏ its work vector is
+P⁰ ∫ ψ ((R + η)/R)ᵏ dA, so a tube's (k = 1) depends on η and the
+deflection is iterated to round-off; a planar one (k = 0) is one solve.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import skfem
+from scipy.sparse.linalg import splu
+
+from multilayer.wall.stack import LUMEN, Stack
+
+#: the relative change of the deflection at which the iteration of a measure moving with η stops
+ROUND_OFF = 1e-14
+#: iterations allowed (the fluid's share of the stiffness, P⁰ k/R against the wall's, is small)
+MAX_ITERATIONS = 60
+
+
+def static_deflection(stack: Stack, pressure: float, external: float) -> np.ndarray:
+    """The wall displacement d (wall numbering, essential DOFs zero) with K d = f under the lumen pressure
+    ``pressure`` and the outer surface's ``external`` (dyn/cm²).
+
+    Raises
+    ------
+    ValueError
+        When the iteration of a measure moving with the lumen does not settle.
+    """
+    space = stack.space
+    k = space.lines[LUMEN].geometry.radial_power
+    free = stack.free
+    solve = splu(stack.stiffness.tocsc()[free][:, free]).solve
+    outer = -external * space.line_load(space.outer_line)
+    d = np.zeros(space.ndofs)
+    for _ in range(MAX_ITERATIONS):
+        eta = space.restrictions[LUMEN] @ d
+        f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
+        new = np.zeros_like(d)
+        new[free] = solve(f[free])
+        change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
+        d = new
+        if k == 0 or change <= ROUND_OFF * size:
+            return d
+    raise ValueError(f"the wall's static equilibrium under initial.pressure = {pressure:g} did not settle in "
+                     f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm): the pressure on the moved "
+                     f"lumen softens the wall (by P⁰/R per unit η) more than its stiffness holds; a smaller "
+                     f"initial.pressure")
+
+
+def lumen_force(space: Any, pressure: float, eta: np.ndarray) -> np.ndarray:
+    """The force of a fluid at rest at ``pressure`` on the lumen moved by ``eta`` (both in the lumen line's
+    numbering): pressure · ∫ ψ ((R + η)/R)ᵏ dA under the measure c·rᵏ."""
+    line = space.lines[LUMEN]
+    stretch = line.basis.interpolate(eta / line.radius)
+    return pressure * skfem.asm(_moved_load, line.basis, stretch=stretch, k=line.geometry.radial_power)
+
+
+@skfem.LinearForm
+def _moved_load(v, w):
+    return v * (1.0 + w["stretch"]) ** w["k"]
