@@ -183,8 +183,8 @@ class Adaptive:
         """err of the step ``state`` → ``new`` per field; None before three old levels exist.
 
         A field's local error is the coupler's own estimate where it put one in
-        ``new.extra["estimate.<field>"]`` (the splitting's), else the Crank–Nicolson
-        estimate :func:`local_error` of the field.  What a coupler puts in
+        ``new.extra["estimate.<field>"]`` (the splitting's), else the scheme's
+        estimate :func:`local_error` of the field (times :func:`carried`).  What a coupler puts in
         ``new.extra["estimate.next.<field>"]`` comes out as ``next.<field>``: an error
         that bounds the next step and does not reject this one.
         """

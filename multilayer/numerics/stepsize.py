@@ -59,6 +59,12 @@ def predictor(old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
     return old[0] + k[0] * (d_now + (k[0] + k[1]) / (k[1] + k[2]) * (d_now - d_before))
 
 
+def bdf2_alpha0(k: Sequence[float]) -> float:
+    """Variable-step BDF2's α₀ = (1 + 2ω)/(1 + ω) for the steps k = [kₙ, kₙ₋₁, ...], ω = kₙ/kₙ₋₁."""
+    w = k[0] / k[1]
+    return (1.0 + 2.0 * w) / (1.0 + w)
+
+
 def milne(scheme: str, k: Sequence[float]) -> float:
     """e/(x^{n+1} − x^p): ``scheme``'s local error of x^{n+1} over its distance from the predictor (module docstring).
 
@@ -68,8 +74,7 @@ def milne(scheme: str, k: Sequence[float]) -> float:
     if scheme == "crank-nicolson":
         return k[0] ** 2 / (k[0] ** 2 + 2.0 * (k[0] + k[1]) * (k[0] + k[1] + k[2]))
     if scheme == "bdf2":
-        w = k[0] / k[1]
-        return k[0] / (k[0] + (1.0 + 2.0 * w) / (1.0 + w) * (k[0] + k[1] + k[2]))
+        return k[0] / (k[0] + bdf2_alpha0(k) * (k[0] + k[1] + k[2]))
     raise ValueError(f"no local error estimate for {scheme!r}; there is one for crank-nicolson and bdf2")
 
 
@@ -83,10 +88,7 @@ def carried(scheme: str, k: Sequence[float]) -> float:
     >>> carried("crank-nicolson", [0.1, 0.1, 0.1]), carried("bdf2", [0.1, 0.1, 0.1])
     (1.0, 1.5)
     """
-    if scheme != "bdf2":
-        return 1.0
-    w = k[0] / k[1]
-    return (1.0 + 2.0 * w) / (1.0 + w)
+    return bdf2_alpha0(k) if scheme == "bdf2" else 1.0
 
 
 def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float],
