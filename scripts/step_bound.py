@@ -1,17 +1,25 @@
-"""The fewest steps any step distribution needs for a fixed-Δt run's error, over the fixed run's count.
+"""The fewest steps a step distribution needs for a fixed-Δt run's error, over the fixed run's count.
 
     python scripts/step_bound.py RUN_FOLDER --probes eta_z1,eta_z2 [--stride 4] [--between T0,T1]
 
 From a resolved run's ``series.csv`` (a reference), g(t) = the largest over the
 probes of |x'''(t)| / max_t |x| (third differences of every ``stride``-th row).
-A second-order rule's local errors are c·kₙ³·g(tₙ); summed over a run of
-total error E, the fewest steps is ∫ g^½ dt / sqrt(E/c) (steps kₙ ∝ g^(−½),
-by Lagrange), and even steps need sqrt(T ∫ g dt / (E/c)), so the best
-saving any controller can reach at equal error is the ratio
+A second-order rule's local errors are c·kₙ³·g(tₙ); summed without
+cancellation over a run they give the error E = c ∫ k² g dt, and the steps
+number N = ∫ dt/k. Two distributions are compared with even steps, whose
+count for the same E is T sqrt(∫ g dt / (E/c)):
 
-    (∫ g^½ dt) / sqrt(T ∫ g dt)  ≤ 1        (Cauchy–Schwarz; 1 for an even g).
+* the fewest steps (Lagrange: kₙ ∝ g^(−1/3), every step's local error the
+  same): N = (∫ g^⅓ dt)^(3/2) / sqrt(E/c), so the ratio
 
-docs/accuracy.md, "Physiological waveform", uses it: a waveform busy all
+      optimal = (∫ g^⅓ dt)^(3/2) / (T sqrt(∫ g dt))  ≤ 1   (Hölder);
+
+* error per unit step (kₙ ∝ g^(−1/2), every step's local error the same
+  fraction of its length, what a tolerance per elapsed time gives):
+
+      per unit step = (∫ g^½ dt) / sqrt(T ∫ g dt)  ≤ 1   (Cauchy–Schwarz).
+
+Both are 1 for an even g. docs/accuracy.md uses them: a waveform busy all
 through its cycle leaves adaptive steps nothing to save.
 """
 
@@ -25,19 +33,21 @@ import numpy as np
 from multilayer.results.reading import read_run
 
 
-def step_ratio(t: np.ndarray, series: list[np.ndarray]) -> float:
-    """The ratio of the module docstring from the even samples ``t`` of each probe's ``series``.
+def step_ratios(t: np.ndarray, series: list[np.ndarray]) -> tuple[float, float]:
+    """The (optimal, per unit step) ratios of the module docstring from the even samples ``t``.
 
     >>> t = np.linspace(0.0, 1.0, 401)
-    >>> round(step_ratio(t, [t ** 3]), 2)            # x''' even: nothing to save
-    1.0
-    >>> s = np.minimum(t, 0.5)                        # x''' = 1 on the first half, 0 on the second (C²)
-    >>> round(step_ratio(t, [s ** 3 / 6 + s ** 2 / 2 * (t - s) + s / 2 * (t - s) ** 2]), 2)   # 1/√2
-    0.71
+    >>> [round(r, 2) for r in step_ratios(t, [t ** 3])]          # x''' even: nothing to save
+    [1.0, 1.0]
+    >>> s = np.minimum(t, 0.5)                       # x''' = 1 on the first half, 0 on the second (C²)
+    >>> [round(r, 2) for r in step_ratios(t, [s ** 3 / 6 + s ** 2 / 2 * (t - s) + s / 2 * (t - s) ** 2])]
+    [0.5, 0.71]
     """
     h = t[1] - t[0]
     g = np.max([np.abs(np.diff(x, 3)) / h ** 3 / np.max(np.abs(x)) for x in series], axis=0)
-    return float(np.sum(np.sqrt(g)) * h / np.sqrt((t[-1] - t[0]) * np.sum(g) * h))
+    span = h * g.size
+    optimal = (np.sum(np.cbrt(g)) * h) ** 1.5 / (span * np.sqrt(np.sum(g) * h))
+    return float(optimal), float(np.sum(np.sqrt(g)) * h / np.sqrt(span * np.sum(g) * h))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -52,7 +62,9 @@ def main(argv: list[str] | None = None) -> int:
     within = (np.asarray(run.t) >= t0 - 1e-12) & (np.asarray(run.t) <= t1 + 1e-12)
     t = np.asarray(run.t)[within][:: args.stride]
     series = [np.asarray(run.series[p])[within][:: args.stride] for p in args.probes.split(",")]
-    print(f"h = {t[1] - t[0]:.3g} s: fewest steps / even steps at equal error = {step_ratio(t, series):.3f}")
+    optimal, per_unit_step = step_ratios(t, series)
+    print(f"h = {t[1] - t[0]:.3g} s: steps / even steps at equal error: optimal {optimal:.3f}, "
+          f"per unit step {per_unit_step:.3f}")
     return 0
 
 
