@@ -21,6 +21,7 @@ from multilayer.numerics.timescheme import SCHEMES
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
 SPLITTING = 'coupler={model="kinematic-splitting",scheme="crank-nicolson",beta=1}'
+PER_STEP = 'time.control="per-step"'
 #: the tolerance each coupler is tested at
 TOLERANCE = {MONOLITHIC: "1e-3", SPLITTING: "1e-3"}
 
@@ -37,7 +38,10 @@ def test_the_predictor_is_exact_for_quadratics_and_the_estimate_for_cubics_on_un
 
 def test_the_controller_grows_after_a_small_error_and_shrinks_after_a_large_one():
     c = Controller()
-    assert c.accepted(1e-3, 1e-3) == 2.0 and c.accepted(1.0, 1.0) < 1.0 and c.rejected(100.0) == 0.1
+    assert c.accepted(1e-3, 1e-3)[0] == 2.0 and c.accepted(1.0, 1.0)[0] < 1.0 and c.rejected(100.0) == 0.1
+    held = Controller(3, hold=True)  # per-step control: growth below KEEP is held back until it reaches KEEP
+    assert held.accepted(0.1, 0.1) == (1.0, pytest.approx(1.133, abs=1e-3))
+    assert held.accepted(0.1, 0.1, 1.133)[0] == pytest.approx(1.2838, abs=1e-4)
 
 
 @pytest.mark.parametrize("coupler, tolerance", TOLERANCE.items())
@@ -49,6 +53,7 @@ def test_adaptive_steps_close_the_ledger_and_report_their_steps(tmp_path, couple
     assert code == 0 and summary["status"] == "ok", summary["reason"]
     assert summary["energy"]["max_relative_residual"] < 1e-9
     adaptive = summary["adaptive"]
+    assert adaptive["control"] == "per-unit-step"
     assert adaptive["accepted"] == summary["steps"] == len(rows)
     dts = np.array([float(r["dt"]) for r in rows])
     t = np.array([float(r["t"]) for r in rows])
@@ -134,19 +139,20 @@ def test_a_study_puts_adaptive_and_fixed_runs_on_one_front(tmp_path):
 LIGHT = {MONOLITHIC: "1e-3", SPLITTING: "3e-1"}
 
 
-@pytest.mark.parametrize("coupler", [MONOLITHIC, SPLITTING], ids=["monolithic-cn", "splitting-cn-beta1"])
-def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler):
+@pytest.mark.parametrize("coupler, control", [(MONOLITHIC, ()), (SPLITTING, ()), (MONOLITHIC, (PER_STEP,))],
+                         ids=["monolithic-cn", "splitting-cn-beta1", "monolithic-cn-per-step"])
+def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler, control):
     """ρ₁h/(ρ_f R) = 1e-3 (the light-wall scene of tests/test_coupled.py), adaptive steps capped at
     dt_max = 2.5e-5 over 0.05 s, so at least 2000 accepted steps: energy ≤ initial (0, from rest) + work at
     every step, the ledger closed at every step (measured: monolithic at tol 1e-3 2 254 accepted steps,
     the splitting at tol 3e-1 2 159; over 0.2 s with dt_max = 1e-4, monolithic took 3 262 steps, max
-    (E − W)/max|W| = −6e-25, residual ≤ 1.1e-12)."""
+    (E − W)/max|W| = −6e-25, residual ≤ 1.1e-12; with per-step control 4 129, −6.4e-25, ≤ 1.5e-12)."""
     code, summary, rows = run_cli(
         "pulse-koiter", tmp_path / "light",
         'layers[0]={ model = "koiter-shell", density = 1.0, thickness = 0.0005, young = 7.5e7, poisson = 0.49 }',
         "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.05", "time.dt=1e-6", "time.dt_max=2.5e-5",
         f"time.tolerance={LIGHT[coupler]}", "output.probes=[{ name = \"eta_z1\", quantity = \"eta\", z = 1.0 }]",
-        coupler)
+        coupler, *control)
     assert code == 0 and summary["status"] == "ok", summary["reason"]
     assert summary["adaptive"]["accepted"] == len(rows) >= 2000
     energy = np.array([float(r["energy.total"]) for r in rows])
@@ -260,3 +266,65 @@ def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_pa
         error = max(probe_errors(run.t, run.series[p], ref.t, ref.series[p])["relative_linf"]
                     for p in ("eta_z1", "eta_z2"))
         assert 1 / 3 <= error / tolerance <= 3, (tolerance, error)
+
+
+
+def test_per_step_control_shares_the_tolerance_among_the_steps_of_the_memory_time():
+    """``time.control = "per-step"``: err = e · N_W / tol with N_W the steps of the last W — for even steps the
+    per-unit-step allowance e · min(t, W)/(Δt · tol), exactly; the controller's error goes as Δt³."""
+    from multilayer.coupling.clock import steps_in_memory
+    time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-2, memory=0.5)
+    unit, step = clock_for(time), clock_for(attrs.evolve(time, control="per-step"))
+    assert unit.controller.order == 2 and step.controller.order == 3
+    record = {"steps_in_memory": 0.0}
+    for n in range(1, 1001):  # even steps of 1e-3 to t = 1: 500 steps in W = 0.5, before and after t = W
+        record["steps_in_memory"] = steps_in_memory(record, n * 1e-3, 1e-3, 0.5)
+        if n in (100, 500, 1000):
+            assert math.isclose(record["steps_in_memory"], min(n * 1e-3, 0.5) / 1e-3, rel_tol=1e-9)
+    # an older record without the count: every accepted step so far
+    assert steps_in_memory({"accepted": 7}, 0.1, 1e-3, 0.5) == 8.0
+
+
+def test_the_unechoed_estimate_drops_an_alternating_mode_and_keeps_a_smooth_error():
+    """Crank–Nicolson's estimate of x = t³/6 (smooth) is kept (exactly on even steps, 0.78–1.10 of it at step
+    ratios 2–0.8, 1.4 at 0.5: larger, so smaller steps, where they shrink fast); that of the undamped stiff mode A(−1)ⁿ, which the plain estimate sees at every step (8A/13 for
+    even steps), is 0 on any steps."""
+    from multilayer.coupling.clock import unechoed
+
+    def estimates(x, steps):  # the plain estimate of the last step and of the one before, on ``steps`` (oldest first)
+        t = np.concatenate([[0.0], np.cumsum(steps)])[::-1]
+        k = list(np.diff(t[::-1])[::-1])
+        values = [np.array([x(tt)]) for tt in t]
+        return [(local_error(values[i], values[i + 1:i + 4], k[i:i + 3]), k[i:i + 3]) for i in (1, 0)]
+
+    def filtered(pair):
+        (e_before, k_before), (e_now, k_now) = pair
+        return float(unechoed(e_now, unechoed(e_before, None, k_before)[1], k_now)[0][0]), float(e_now[0])
+
+    h = 0.01
+    for ratio, low, high in ((1.0, 1.0, 1.0), (2.0, 0.78, 0.79), (1.2, 0.92, 0.94), (0.8, 1.10, 1.11), (0.5, 1.39, 1.41)):
+        got, plain = filtered(estimates(lambda t: t ** 3 / 6, [h, h, h, h, ratio * h]))
+        assert low - 1e-9 <= got / plain <= high + 1e-9, (ratio, got / plain)
+    sign = {}
+    for steps in ([h] * 5, [h, 1.3 * h, 0.7 * h, h, 2.0 * h]):
+        pair = estimates(lambda t, steps=steps: (-1.0) ** int(np.argmin(np.abs(np.cumsum([0.0, *steps]) - t))),
+                         steps)
+        got, plain = filtered(pair)
+        sign[len(sign)] = plain
+        assert abs(got) < 1e-12 * abs(plain)
+    assert math.isclose(abs(sign[0]), 8.0 / 13.0, rel_tol=1e-12)
+
+
+def test_per_step_adaptive_runs_close_the_ledger_and_resume_bit_identically(tmp_path):
+    """The per-step control's count N_W and Crank–Nicolson's last estimates (``echo.*``) are part of the
+    state: the ledger closes, the summary names the control, and a resumed run takes the same steps."""
+    code, summary, rows = run_cli("pulse-koiter-thick", tmp_path / "a", *SMALL, MONOLITHIC, "time.tolerance=1e-3",
+                                  PER_STEP, "time.output_interval=1e-3")
+    assert code == 0 and summary["status"] == "ok", summary["reason"]
+    assert summary["adaptive"]["control"] == "per-step"
+    assert summary["energy"]["max_relative_residual"] < 1e-9
+    assert all(float(r["error.local"]) <= 1.0 for r in rows)
+    assert len({float(r["dt"]) for r in rows}) > 10
+    assert_resume_is_bit_identical(tmp_path / "resume", "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3",
+                                   "time.dt=1e-6", MONOLITHIC, "time.tolerance=1e-3", PER_STEP,
+                                   "time.output_interval=1e-3", every=10, half=0.002, end=0.004)

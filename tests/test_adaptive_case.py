@@ -1,4 +1,5 @@
-"""``[time] tolerance``, ``dt_min``, ``dt_max``, ``output_interval``, ``memory``: read, bounded, refused with key paths."""
+"""Adaptive keys of ``[time]`` (tolerance, dt_min, dt_max, output_interval, memory, control): read, bounded,
+refused with key paths."""
 
 import pytest
 from runs import CASES
@@ -27,6 +28,8 @@ def problems(*sets: str) -> list[str]:
     (("time.tolerance=1e-3", "time.memory=0"), "time.memory", "> 0.0"),
     (("time.tolerance=1e-3", "time.memory=-0.02"), "time.memory", "> 0.0"),
     (("time.memory=0.02",), "time.memory", "read only with adaptive steps"),
+    (("time.tolerance=1e-3", 'time.control="per_step"'), "time.control", "per-step"),
+    (('time.control="per-step"',), "time.control", "read only with adaptive steps"),
 ])
 def test_bad_adaptive_time_keys_are_refused_with_their_key_path(sets, path, words):
     found = problems(CN_SPLIT, *sets)

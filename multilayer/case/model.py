@@ -46,6 +46,7 @@ class TimeSpec:
     dt_max: float | None = None  #: adaptive steps: the largest step (s; None: no bound)
     output_interval: float | None = None  #: adaptive steps land on its multiples (s)
     memory: float | None = None  #: adaptive steps: the memory time W (s; None: the loads' shortest period, or end)
+    control: str | None = None  #: adaptive steps: "per-unit-step" (None) or "per-step" (multilayer.coupling.clock)
 
     @property
     def adaptive(self) -> bool:

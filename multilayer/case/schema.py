@@ -31,6 +31,8 @@ MESH = (
     Param("order", type=int, choices=(1, 2), doc="polynomial order of every field"),
     Param("grading", default=1.0, ge=1.0, doc="fluid refinement toward the wall (1 = uniform)"),
 )
+#: how an adaptive run shares its tolerance among its steps (multilayer.coupling.clock)
+CONTROLS = ("per-unit-step", "per-step")
 TIME = (
     Param("end", "T", "s", gt=0.0, doc="final time"),
     Param("dt", "Δt", "s", gt=0.0, doc="time step (with tolerance: the first step)"),
@@ -46,9 +48,13 @@ TIME = (
     Param("memory", "W", "s", default=None, gt=0.0,
           doc="adaptive steps: the error per unit time is measured over min(t, W); unset: the loads' shortest "
               "period, or time.end when no load repeats"),
+    Param("control", type=str, default=None, choices=CONTROLS,
+          doc="adaptive steps: how the tolerance is shared among the steps: 'per-unit-step' (a step's local error in "
+              "proportion to its length; unset) or 'per-step' (every step of the span W the same local error: the "
+              "fewest steps for an error that adds up)"),
 )
 #: the keys of [time] that only adaptive steps (time.tolerance) read
-ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory")
+ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory", "control")
 
 
 #: radial cells of a thick layer: a core key, not a plugin parameter (its upper bound: the memory check)

@@ -24,6 +24,17 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   may add tol·kₙ/min(tⁿ⁺¹, W) of the field's size and the errors of any span
   W add up to about tol — on a periodic run the allowed local error stops
   shrinking after one period; without a period it is the run's relative error;
+* or, with ``time.control = "per-step"``, every step of the span W is allowed
+  the same share of tol: err = e · N_W / tol, N_W the steps of the last W
+  (all of them while tⁿ⁺¹ ≤ W; after, a count that forgets a step at the
+  rate 1/W, :func:`steps_in_memory`). That is kₙ replaced by the span's mean
+  step min(t, W)/N_W: for even steps the same allowance, but steps in
+  proportion to |x'''|^(−1/3) instead of |x'''|^(−1/2), the fewest for errors
+  that add up (``scripts/step_bound.py``); err then goes as kₙ^(p+1). A step
+  is charged for the error it makes, not for what earlier steps left: with
+  Crank–Nicolson its estimate drops the echo of an undamped (−1)ⁿ mode
+  (:func:`unechoed`), which would otherwise be charged again at every step
+  and, N_W growing as the steps shrink, drive them to ``time.dt_min``;
 * Gustafsson's PI controller (:class:`~multilayer.numerics.stepsize.Controller`)
   proposes the next step from the larger of err and the next-step errors;
   a step with err > 1 is rejected and retried
@@ -138,12 +149,14 @@ class Adaptive:
         self.interval = time.output_interval
         self.loads = setup.case.loads.histories()
         self.memory = time.memory_time(self.loads)
-        self.controller = Controller(scheme.order)
+        self.per_step = time.control == "per-step"
+        self.controller = Controller(scheme.order + 1, hold=True) if self.per_step else Controller(scheme.order)
 
     def start(self) -> dict[str, float]:
         """The controller's record before the first step."""
         return {"dt": self.first, "err": 1.0, "last": 0.0, "accepted": 0, "rejected": 0, "smallest": 0.0,
-                "largest": 0.0, "refactorizations": 0, **{f"peak.{name}": 0.0 for name in FIELDS}}
+                "largest": 0.0, "refactorizations": 0, "steps_in_memory": 0.0, "held": 1.0,
+                **{f"peak.{name}": 0.0 for name in FIELDS}}
 
     def output_time(self, t0: float) -> float:
         """The next output time after ``t0``: a multiple of the output interval, or the end."""
@@ -179,8 +192,10 @@ class Adaptive:
         stats = [*self.setup.solvers.values(), *([self.setup.fluid.stats] if self.setup.fluid is not None else [])]
         return sum(st.factorizations for st in stats)
 
-    def error(self, state: State, new: State, dt: float, record: dict[str, float]) -> dict[str, float] | None:
-        """err of the step ``state`` → ``new`` per field; None before three old levels exist.
+    def error(self, state: State, new: State, dt: float,
+              record: dict[str, float]) -> tuple[dict[str, float] | None, dict[str, np.ndarray]]:
+        """(err of the step ``state`` → ``new`` per field, None before three old levels exist; the
+        ``echo.<field>`` the next step's :func:`unechoed` reads).
 
         A field's local error is the coupler's own estimate where it put one in
         ``new.extra["estimate.<field>"]`` (the splitting's), else the scheme's
@@ -190,23 +205,26 @@ class Adaptive:
         """
         old = old_levels(state)
         if old is None:
-            return None
+            return None, {}
         if "fluid.X" in new.extra and "fluid.X" not in old[-1].extra:  # the start: X⁰ = 0
             old[-1] = attrs.evolve(old[-1], extra={**old[-1].extra, "fluid.X": np.zeros_like(new.extra["fluid.X"])})
         k = [dt, old[0].t - old[1].t, old[1].t - old[2].t]
         levels = [fields(s) for s in old]
-        out = {}
+        share = (steps_in_memory(record, new.t, dt, self.memory) if self.per_step  # a step may add tol/share
+                 else min(new.t, self.memory) / dt)
+        out, raw = {}, {}
         for name, x in fields(new).items():
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
             given = new.extra.get(f"estimate.{name}")
             if given is None:
                 given = local_error(x, [lv[name] for lv in levels], k, self.scheme.name) * carried(self.scheme.name, k)
+                if self.per_step and self.scheme.name == "crank-nicolson":
+                    given, raw[f"echo.{name}"] = unechoed(given, state.extra.get(f"echo.{name}"), k)
             estimates = {name: given, f"next.{name}": new.extra.get(f"estimate.next.{name}")}
             for key, e in estimates.items():
                 if e is not None:
-                    out[key] = (float(np.max(np.abs(e))) / scale * min(new.t, self.memory) / (dt * self.tol)
-                                if scale > 0.0 else 0.0)
-        return out
+                    out[key] = float(np.max(np.abs(e))) / scale * share / self.tol if scale > 0.0 else 0.0
+        return out, raw
 
     def size(self, x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
         """A field's size at time t: max(|x|, min(t, W) |x − x_before|/Δt) in the max norm.
@@ -229,8 +247,9 @@ class Adaptive:
             if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
                                    or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
                 record["refactorizations"] += self.factorizations() - counted
-            errors = self.error(state, new, window.dt, record)
+            errors, raw = self.error(state, new, window.dt, record)
             new = attrs.evolve(new, extra={k: v for k, v in new.extra.items() if not k.startswith("estimate.")})
+            new = attrs.evolve(new, extra={**new.extra, **raw})
             err = None if errors is None else max((e for k, e in errors.items() if not k.startswith("next.")),
                                                    default=0.0)
             if err is not None and err > 1.0:
@@ -246,14 +265,16 @@ class Adaptive:
             clipped = window.dt < min(record["dt"], self.hi)
             ahead = max((e for k, e in (errors or {}).items() if k.startswith("next.")), default=0.0)
             control = None if err is None else max(err, ahead)  # what sets the next step
-            factor = 1.0 if err is None else self.controller.accepted(control, record["err"])
+            factor, held = (1.0, 1.0) if err is None else self.controller.accepted(control, record["err"],
+                                                                                   record.get("held", 1.0))
             proposal = max(window.dt * factor, record["dt"]) if clipped else window.dt * factor
             if proposal < self.lo:  # the error asks for steps below dt_min from here on: no end of them
                 raise SchemeFailure(
                     f"adaptive steps: after t = {new.t:.6g} s the error (err = {control:.3g} × time.tolerance) asks "
                     f"for a step of {proposal:.3g} s < time.dt_min = {self.lo:.3g} s: loosen time.tolerance or "
                     f"lower time.dt_min (every step up to t = {state.t:.6g} s is kept)")
-            record.update(dt=min(proposal, self.hi), err=record["err"] if err is None else control,
+            record.update(steps_in_memory=steps_in_memory(record, new.t, window.dt, self.memory))
+            record.update(dt=min(proposal, self.hi), err=record["err"] if err is None else control, held=held,
                           last=window.dt, accepted=record["accepted"] + 1,
                           smallest=min(record["smallest"] or window.dt, window.dt),
                           largest=max(record["largest"], window.dt))
@@ -268,12 +289,68 @@ class Adaptive:
                 "error.next": ahead, **{f"error.{name}": (errors or {}).get(name, 0.0) for name in FIELDS}})
 
 
+def alternating(k: list[float]) -> float:
+    """μ: Crank–Nicolson's estimate (:func:`local_error`) of the undamped mode xⁿ = (−1)ⁿ on the steps ``k``.
+
+    The mode that a stiff, undamped component leaves (amplification −1 when
+    ωΔt ≫ 1), seen at xⁿ = 1: −8/13 for even steps; its size depends on the
+    step ratios only.
+
+    >>> round(alternating([0.1, 0.1, 0.1]), 12), round(alternating([0.2, 0.1, 0.1]), 12)
+    (-0.615384615385, -2.571428571429)
+    """
+    return float(local_error(np.array(-1.0), [np.array(1.0), np.array(-1.0), np.array(1.0)], k))
+
+
+def unechoed(e: np.ndarray, before: np.ndarray | None, k: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """(Crank–Nicolson's local error estimate ``e`` of a step without the echo of an undamped (−1)ⁿ mode,
+    ``e``/μ for the next step's call).
+
+    ``before`` is the step before's ``e``/μ (None: ``e`` is returned as it is),
+    μ = :func:`alternating` of each step's ratios; the estimate is
+    ½ μₙ₊₁ (eⁿ⁺¹/μₙ₊₁ + eⁿ/μₙ). A stiff mode that Crank–Nicolson carries
+    undamped flips sign every step, and the predictor's miss of it is μ times
+    its value, so eⁿ⁺¹/μₙ₊₁ = −eⁿ/μₙ and the estimate is 0 whatever the step
+    ratios: an oscillation made once is not counted again at every later step
+    (a step that makes one still counts half of it). A smooth error changes
+    little from step to step: for it the estimate is eⁿ⁺¹ on even steps,
+    0.78–1.10 of it at step ratios 2–0.8, and larger where steps shrink faster
+    (1.4 at 0.5) (theory §4, "The echo of an undamped mode").
+
+    >>> k = [0.1, 0.1, 0.1]
+    >>> mu = alternating(k)
+    >>> unechoed(np.array([1.0, 2.0]), np.array([1.0, -2.0]) / mu, k)[0]     # smooth, alternating
+    array([1., 0.])
+    """
+    mu = alternating(k)
+    if before is None:
+        return e, e / mu
+    return 0.5 * (e + mu * before), e / mu
+
+
+def steps_in_memory(record: dict[str, float], t: float, dt: float, memory: float) -> float:
+    """N_W after a step of ``dt`` to ``t``: the steps of the last memory time W, this one included.
+
+    While t ≤ W every step so far; after, the count forgets at the rate 1/W
+    (N ← N (1 − Δt/W) + 1), so even steps k hold it at W/k.
+
+    >>> record = {"steps_in_memory": 0.0}
+    >>> for n in range(1, 301):
+    ...     record["steps_in_memory"] = steps_in_memory(record, n * 0.01, 0.01, 1.0)
+    >>> round(record["steps_in_memory"], 9)          # 100 steps in W = 1 s, before and after t = W
+    100.0
+    """
+    before = record.get("steps_in_memory", record.get("accepted", 0.0))  # an older record: every step so far
+    return (before if t <= memory * (1.0 + 1e-12) else before * max(0.0, 1.0 - dt / memory)) + 1.0
+
+
 def summary(record: dict[str, float] | None, case: Case) -> dict[str, object]:
     """The ``adaptive`` entry of ``summary.json`` from the last state's controller record (empty for fixed steps)."""
     time = case.time
     if time.tolerance is None or record is None:
         return {}
     return {"adaptive": {"tolerance": time.tolerance, "memory": time.memory_time(case.loads.histories()),
+                         "control": time.control or "per-unit-step",
                          "accepted": int(record["accepted"]),
                          "rejected": int(record["rejected"]),
                          "dt_range": [record["smallest"], record["largest"]],

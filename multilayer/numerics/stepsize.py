@@ -102,20 +102,37 @@ class Controller:
     """Gustafsson's PI step-size controller on the normalized error err (accept when err ≤ 1).
 
     >>> c = Controller()
-    >>> c.accepted(0.1, 1.0) > 1.0, c.accepted(1.0, 1.0) < 1.0, c.rejected(4.0) < 1.0
+    >>> c.accepted(0.1, 1.0)[0] > 1.0, c.accepted(1.0, 1.0)[0] < 1.0, c.rejected(4.0) < 1.0
     (True, True, True)
-    >>> c.accepted(0.7, 1.0)        # a factor in [1, KEEP): keep the step
-    1.0
+    >>> c.accepted(0.7, 1.0, held=1.18)       # a factor in [1, KEEP): keep the step
+    (1.0, 1.0)
+    >>> h = Controller(3, hold=True)
+    >>> [round(x, 3) for x in h.accepted(0.1, 0.1)]     # ... and hold its growth back
+    [1.0, 1.133]
+    >>> [round(x, 3) for x in h.accepted(0.1, 0.1, held=1.133)]      # until the growth held reaches KEEP
+    [1.284, 1.0]
     """
 
     order: int = 2
+    hold: bool = False  #: a growth below KEEP is held back (True) or dropped (False)
 
-    def accepted(self, err: float, err_prev: float) -> float:
-        """The next step over this one, after an accepted step of error ``err`` (the one before: ``err_prev``)."""
+    def accepted(self, err: float, err_prev: float, held: float = 1.0) -> tuple[float, float]:
+        """(the next step over this one, the growth held back) after an accepted step of error ``err`` (the one
+        before: ``err_prev``), ``held`` the growth held back so far.
+
+        A factor in [1, KEEP) keeps Δt. With ``hold`` its growth is held back, not dropped: the factors of the
+        steps kept at one Δt multiply until they reach KEEP. Dropped, they can hold a PI controller, whose factor
+        at a steady err is SAFETY·err^(−(KI−KP)/q) (1.13 at err = 0.1, q = 3), at one Δt with err far below 1.
+        """
         err, err_prev = max(err, 1e-10), max(err_prev, 1e-10)
         factor = SAFETY * err ** (-KI / self.order) * err_prev ** (KP / self.order)
         factor = min(GROW, max(SHRINK, factor))
-        return 1.0 if 1.0 <= factor < KEEP else factor
+        if factor < 1.0:
+            return factor, 1.0
+        total = min(GROW, held * factor) if self.hold else factor
+        if total < KEEP:
+            return 1.0, total if self.hold else 1.0
+        return total, 1.0
 
     def rejected(self, err: float) -> float:
         """The retried step over the rejected one (< 1)."""
