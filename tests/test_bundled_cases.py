@@ -96,3 +96,18 @@ def test_the_quick_start_answer_is_right(tmp_path):
         eta = np.array([float(r[f"eta_z{k}"]) for r in rows]) * 1e4
         assert abs(eta.max() / ref - 1) < 3e-3, (k, eta.max(), ref)
         assert eta[-1] < 0.5 * eta.max() or k == 4  # the crest has passed z = 1, 2, 3 cm
+
+
+def test_aortic_inflow_puts_its_stroke_volume_in_and_the_pressure_follows(tmp_path):
+    """physiological-flow, one cycle on a coarse mesh: the inflow's flux is the table's, every level (its volume
+    over the cycle is the table's mean, 0.75 cm² per unit depth, to the trapezoid rule's error on a smooth periodic
+    spline); the ledger closes; the inlet pressure rises from its diastolic 80 mmHg (scaled) over the ejection."""
+    code, summary, rows = run("physiological-flow", tmp_path, "mesh.nz=15", "mesh.nr=3", "time.end=1.0",
+                              "time.dt=4e-3")
+    assert code == 0 and summary["status"] == "ok", summary["reason"]
+    assert summary["energy"]["max_relative_residual"] < 1e-9
+    t = np.array([0.0] + [float(r["t"]) for r in rows])
+    q = np.array([0.0] + [float(r["q_in"]) for r in rows])
+    assert abs(np.trapezoid(q, t) - 0.75) < 1e-8  # measured 2.9e-10
+    p = np.array([float(r["end.inlet.p"]) for r in rows])
+    assert p.max() > 1.5 * 2666.4 and abs(p[0] - 2666.4) < 0.01 * 2666.4
