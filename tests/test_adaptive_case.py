@@ -47,3 +47,15 @@ def test_a_coupler_without_an_error_estimate_refuses_a_tolerance(coupler):
 def test_unset_adaptive_keys_leave_the_resolved_case_and_its_hash_alone():
     case = load_case(CASES / "pulse-koiter-thick.toml")
     assert set(case.resolved["time"]) == {"end", "dt"} and not case.time.adaptive
+
+
+def test_validate_describes_adaptive_steps(capsys):
+    """``multilayer validate`` names the tolerance, the control, the first step and the bounds, not a count of
+    steps of the first step."""
+    from multilayer.commands.main import main
+    code = main(["validate", str(CASES / "physiological-flow.toml"), "--set", "time.dt=1e-4", "--set",
+                 "time.tolerance=1e-3", "--set", 'time.control="per-step"', "--set", "time.dt_max=8e-3"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "adaptive steps to 3 s: tolerance 0.001 (per-step), first step 0.0001 s, at most 0.008 s" in out
+    assert "steps of" not in out

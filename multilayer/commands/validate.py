@@ -9,7 +9,7 @@ import attrs
 
 from multilayer.campaign.sweep import read_sweep_table
 from multilayer.case.casefile import load_case
-from multilayer.case.model import Case
+from multilayer.case.model import Case, TimeSpec
 from multilayer.commands.common import OK, case_options, plugin_options
 from multilayer.commands.run import invalid_case
 from multilayer.plugin.problems import CaseError
@@ -55,12 +55,28 @@ def describe(path: Path, case: Case) -> str:
     return "\n".join([
         f"{path}: valid" + (f" — {case.title}" if case.title else ""),
         f"  channel  L = {g.length:g} cm, R = {g.radius:g} cm; mesh {case.mesh.nz} x {case.mesh.nr}, order {case.mesh.order}",
-        f"  time     {t.steps} steps of {t.dt:g} s to {t.end:g} s",
+        f"  time     {time_line(t)}",
         f"  fluid    {fluid}",
         f"  layers   {layers}",
         f"  coupler  {case.coupler.model}",
         f"  digest   {case.digest[:16]}",
     ])
+
+
+def time_line(t: TimeSpec) -> str:
+    """The time steps of a case: fixed, or adaptive with their tolerance, first step, bounds and control.
+
+    >>> time_line(TimeSpec(end=3.0, dt=2e-3))
+    '1500 steps of 0.002 s to 3 s'
+    >>> time_line(TimeSpec(end=3.0, dt=1e-4, tolerance=1e-3, dt_max=8e-3, control="per-step"))
+    'adaptive steps to 3 s: tolerance 0.001 (per-step), first step 0.0001 s, at most 0.008 s'
+    """
+    if not t.adaptive:
+        return f"{t.steps} steps of {t.dt:g} s to {t.end:g} s"
+    bounds = "".join([f", at least {t.dt_min:g} s" if t.dt_min is not None else "",
+                      f", at most {t.dt_max:g} s" if t.dt_max is not None else ""])
+    return (f"adaptive steps to {t.end:g} s: tolerance {t.tolerance:g} ({t.control or 'per-unit-step'}), "
+            f"first step {t.dt:g} s{bounds}")
 
 
 def describe_sweep(path: Path) -> None:
