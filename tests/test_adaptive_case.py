@@ -59,3 +59,14 @@ def test_validate_describes_adaptive_steps(capsys):
     assert code == 0
     assert "adaptive steps to 3 s: tolerance 0.001 (per-step), first step 0.0001 s, at most 0.008 s" in out
     assert "steps of" not in out
+
+
+def test_a_study_compares_runs_that_differ_from_the_reference_in_any_adaptive_key():
+    """``study --vary time.control=...`` (or any key only adaptive steps read) is compared with the fixed-Δt
+    reference, as ``time.tolerance`` is: the keys come from the schema, so a new one cannot be left out."""
+    from multilayer.campaign.study import FREE_KEYS, case_differences
+    from multilayer.case.schema import ADAPTIVE_KEYS
+    reference = {"time": {"end": 1.0, "dt": 1e-4}}
+    for key in ("tolerance", *ADAPTIVE_KEYS):
+        run = {"time": {"end": 1.0, "dt": 1e-3, key: "per-step" if key == "control" else 1e-3}}
+        assert case_differences(reference, run, FREE_KEYS) == [], key

@@ -47,6 +47,7 @@ from multilayer.campaign.accuracy import (
     richardson_order,
 )
 from multilayer.campaign.planning import REFERENCE, CouplerChoice, Planned
+from multilayer.case.schema import ADAPTIVE_KEYS
 from multilayer.plugin.problems import Problem, did_you_mean
 from multilayer.results.reading import RunData, dof_counts
 
@@ -56,7 +57,7 @@ TARGETS = (0.05, 0.01)
 BASELINE = "kinematic-splitting"
 #: key paths a compared run may differ in from the reference (the reference may stop earlier: ``time.end``)
 #: the keys of adaptive steps: a run with ``time.tolerance`` is compared by its tolerance, not by Δt
-ADAPTIVE = ("tolerance", "dt_min", "dt_max", "output_interval", "memory")
+ADAPTIVE = ("tolerance", *ADAPTIVE_KEYS)
 FREE_KEYS = ("title", "coupler", "time.dt", "time.end", "mesh", "output.every", *(f"time.{k}" for k in ADAPTIVE))
 #: key paths in which the runs of the reference's own Δt sequence differ from it (Richardson)
 SIBLING_KEYS = ("title", "time.dt", "output.every")
