@@ -246,10 +246,12 @@ def test_the_splitting_estimate_sees_its_smooth_defect_and_not_the_alternating_o
     assert math.isclose(float(out["estimate.next.wall.d"][0]), k[0] * 0.5, rel_tol=1e-12)
 
 
-def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_path):
+@pytest.mark.parametrize("control", [(), (PER_STEP,)], ids=["per-unit-step", "per-step"])
+def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_path, control):
     """The calibration of docs/accuracy.md on the coarse pulse (12 × 3 cells, 4 ms; η at z = 1, 2 cm against
-    monolithic CN at Δt = 2.5e-6): the relative L∞ error over the tolerance, measured 1.10 at 1e-2 and 1.04 at
-    1e-3; the acceptance's band is [1/3, 3]."""
+    monolithic CN at Δt = 2.5e-6): the relative L∞ error over the tolerance, measured 1.07 at 1e-2 and 1.07 at
+    1e-3; per step (its next-step error under a PI controller of its own, q = 1) 0.64 and 0.65 — with the step's
+    q = 3 it was 0.32 at 1e-2, outside the band; the acceptance's band is [1/3, 3]."""
     from multilayer.campaign.accuracy import probe_errors
     from multilayer.results.reading import read_run
 
@@ -260,7 +262,7 @@ def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_pa
     for tolerance in (1e-2, 1e-3):
         out = tmp_path / f"tol{tolerance}"
         code, summary, _ = run_cli("pulse-koiter-thick", out, *sets, SPLITTING, "time.dt=1e-6",
-                                   f"time.tolerance={tolerance}")
+                                   f"time.tolerance={tolerance}", *control)
         assert code == 0 and summary["status"] == "ok", summary["reason"]
         run = read_run(out.name, out)
         error = max(probe_errors(run.t, run.series[p], ref.t, ref.series[p])["relative_linf"]

@@ -116,23 +116,30 @@ class Controller:
     order: int = 2
     hold: bool = False  #: a growth below KEEP is held back (True) or dropped (False)
 
-    def accepted(self, err: float, err_prev: float, held: float = 1.0) -> tuple[float, float]:
-        """(the next step over this one, the growth held back) after an accepted step of error ``err`` (the one
-        before: ``err_prev``), ``held`` the growth held back so far.
+    def factor(self, err: float, err_prev: float) -> float:
+        """The PI factor SAFETY·err^(−KI/q)·err_prev^(KP/q), bounded to [SHRINK, GROW]: at a steady err it is
+        SAFETY·err^(−(KI−KP)/q), 1 at err = SAFETY^(q/(KI−KP)) (0.50 for q = 2, 0.35 for q = 3, 0.70 for q = 1)."""
+        err, err_prev = max(err, 1e-10), max(err_prev, 1e-10)
+        return min(GROW, max(SHRINK, SAFETY * err ** (-KI / self.order) * err_prev ** (KP / self.order)))
+
+    def kept(self, factor: float, held: float = 1.0) -> tuple[float, float]:
+        """(the next step over this one, the growth held back) for the proposed ``factor``.
 
         A factor in [1, KEEP) keeps Δt. With ``hold`` its growth is held back, not dropped: the factors of the
         steps kept at one Δt multiply until they reach KEEP. Dropped, they can hold a PI controller, whose factor
         at a steady err is SAFETY·err^(−(KI−KP)/q) (1.13 at err = 0.1, q = 3), at one Δt with err far below 1.
         """
-        err, err_prev = max(err, 1e-10), max(err_prev, 1e-10)
-        factor = SAFETY * err ** (-KI / self.order) * err_prev ** (KP / self.order)
-        factor = min(GROW, max(SHRINK, factor))
         if factor < 1.0:
             return factor, 1.0
         total = min(GROW, held * factor) if self.hold else factor
         if total < KEEP:
             return 1.0, total if self.hold else 1.0
         return total, 1.0
+
+    def accepted(self, err: float, err_prev: float, held: float = 1.0) -> tuple[float, float]:
+        """(the next step over this one, the growth held back) after an accepted step of error ``err`` (the one
+        before: ``err_prev``), ``held`` the growth held back so far (:meth:`factor`, :meth:`kept`)."""
+        return self.kept(self.factor(err, err_prev), held)
 
     def rejected(self, err: float) -> float:
         """The retried step over the rejected one (< 1)."""
