@@ -24,17 +24,14 @@ physical, as in ``physiological-rcr``).
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
+
+# the sibling script's periodic bump and table writer
+from aortic_waveform import bump, write_table
 
 CYCLE = 1.0       # s, 60 beats/min
 POINTS = 400      # samples per cycle (2.5 ms apart; the case interpolates them with a periodic cubic)
 Q_MEAN = 0.75     # cm²/s per unit depth
-
-
-def bump(s: np.ndarray, centre: float, width: float) -> np.ndarray:
-    return sum(np.exp(-(((s - centre + k) / width) ** 2)) for k in (-1, 0, 1))
 
 
 def shape(s: np.ndarray) -> np.ndarray:
@@ -50,14 +47,12 @@ def waveform(s: np.ndarray) -> np.ndarray:
 def main() -> None:
     s = np.arange(POINTS) / POINTS
     q = waveform(s)
-    out = Path(__file__).parents[1] / "cases" / "data" / "aortic-flow-1s.csv"
-    lines = ["# aortic-like inflow cycle written by scripts/aortic_flow.py:",
-             f"# one {CYCLE:g} s cycle (60 beats/min); Q in cm^2/s per unit depth, mean {Q_MEAN:g}",
-             "t,Q"]
-    lines += [f"{si * CYCLE:.8e},{qi:.9e}" for si, qi in zip(s, q)]
-    out.write_text("\n".join(lines) + "\n")
-    print(f"wrote {out}: {POINTS} points, Q in [{q.min():.4f}, {q.max():.4f}] cm^2/s, "
-          f"peak at s = {s[np.argmax(q)]:.3f}, |Q|/max Q < {np.abs(q[(s > 0.65) | (s < 0.2)]).max() / q.max():.2e} over s in (0.65, 1.2), Q(0)/max Q = {q[0] / q.max():.1e}")
+    out = write_table("aortic-flow-1s.csv", ["aortic-like inflow cycle written by scripts/aortic_flow.py:",
+                                             f"one {CYCLE:g} s cycle (60 beats/min); Q in cm^2/s per unit depth, "
+                                             f"mean {Q_MEAN:g}"], "Q", s * CYCLE, q, ".9e")
+    quiet = np.abs(q[(s > 0.65) | (s < 0.2)]).max() / q.max()
+    print(f"wrote {out}: {POINTS} points, Q in [{q.min():.4f}, {q.max():.4f}] cm^2/s, peak at s = "
+          f"{s[np.argmax(q)]:.3f}, |Q|/max Q < {quiet:.2e} over s in (0.65, 1.2), Q(0)/max Q = {q[0] / q.max():.1e}")
 
 
 if __name__ == "__main__":

@@ -43,14 +43,26 @@ def bump(s: np.ndarray, centre: float, width: float) -> np.ndarray:
     return sum(np.exp(-(((s - centre + k) / width) ** 2)) for k in (-1, 0, 1))
 
 
+def shape(s: np.ndarray) -> np.ndarray:
+    """w(s) of the module docstring."""
+    return (bump(s, 0.16, 0.075) + 0.45 * bump(s, 0.30, 0.08) - 0.12 * bump(s, 0.38, 0.018)
+            + 0.12 * bump(s, 0.44, 0.04) + 0.30 * bump(s, 0.55, 0.30))
+
+
 def waveform(s: np.ndarray) -> np.ndarray:
     """Pressure (mmHg) at the phases ``s`` of the cycle."""
-    w = (bump(s, 0.16, 0.075) + 0.45 * bump(s, 0.30, 0.08) - 0.12 * bump(s, 0.38, 0.018)
-         + 0.12 * bump(s, 0.44, 0.04) + 0.30 * bump(s, 0.55, 0.30))
-    fine = np.linspace(0.0, 1.0, 4001)
-    wf = (bump(fine, 0.16, 0.075) + 0.45 * bump(fine, 0.30, 0.08) - 0.12 * bump(fine, 0.38, 0.018)
-          + 0.12 * bump(fine, 0.44, 0.04) + 0.30 * bump(fine, 0.55, 0.30))
-    return 80.0 + 40.0 * (w - wf.min()) / (wf.max() - wf.min())
+    wf = shape(np.linspace(0.0, 1.0, 4001))
+    return 80.0 + 40.0 * (shape(s) - wf.min()) / (wf.max() - wf.min())
+
+
+def write_table(name: str, comments: list[str], column: str, t: np.ndarray, values: np.ndarray,
+                value_format: str) -> Path:
+    """``cases/data/<name>``: the ``comments`` lines (each after '# '), the header ``t,<column>``, then the rows."""
+    out = Path(__file__).parents[1] / "cases" / "data" / name
+    lines = [f"# {c}" for c in comments] + [f"t,{column}"]
+    lines += [f"{ti:.8e},{vi:{value_format}}" for ti, vi in zip(t, values)]
+    out.write_text("\n".join(lines) + "\n")
+    return out
 
 
 def main(argv: list[str]) -> None:
@@ -59,12 +71,9 @@ def main(argv: list[str]) -> None:
     t = s * CYCLE / compression
     p = waveform(s)
     name = argv[1] if len(argv) > 1 else "aortic-pressure.csv"
-    out = Path(__file__).parents[1] / "cases" / "data" / name
-    lines = [f"# aortic-like pressure cycle written by scripts/aortic_waveform.py (compression {compression:g}):",
-             f"# one {CYCLE:g} s cycle shown in {CYCLE / compression:g} s; p in mmHg (80-120)",
-             "t,p"]
-    lines += [f"{ti:.8e},{pi:.6f}" for ti, pi in zip(t, p)]
-    out.write_text("\n".join(lines) + "\n")
+    out = write_table(name, [f"aortic-like pressure cycle written by scripts/aortic_waveform.py (compression "
+                             f"{compression:g}):", f"one {CYCLE:g} s cycle shown in {CYCLE / compression:g} s; "
+                             f"p in mmHg (80-120)"], "p", t, p, ".6f")
     print(f"wrote {out}: {POINTS} points, p in [{p.min():.2f}, {p.max():.2f}] mmHg, "
           f"peak at s = {s[np.argmax(p)]:.3f}")
 
