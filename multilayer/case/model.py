@@ -54,6 +54,11 @@ class TimeSpec:
         return self.tolerance is not None
 
     @property
+    def sharing(self) -> str:
+        """How an adaptive run shares its tolerance among its steps: ``control``, by default "per-unit-step"."""
+        return self.control or "per-unit-step"
+
+    @property
     def smallest(self) -> float:
         """The smallest step an adaptive run may take (s)."""
         return self.dt_min if self.dt_min is not None else self.dt * DT_MIN_FRACTION

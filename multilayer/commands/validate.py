@@ -75,7 +75,7 @@ def time_line(t: TimeSpec) -> str:
         return f"{t.steps} steps of {t.dt:g} s to {t.end:g} s"
     bounds = "".join([f", at least {t.dt_min:g} s" if t.dt_min is not None else "",
                       f", at most {t.dt_max:g} s" if t.dt_max is not None else ""])
-    return (f"adaptive steps to {t.end:g} s: tolerance {t.tolerance:g} ({t.control or 'per-unit-step'}), "
+    return (f"adaptive steps to {t.end:g} s: tolerance {t.tolerance:g} ({t.sharing}), "
             f"first step {t.dt:g} s{bounds}")
 
 

@@ -149,7 +149,7 @@ class Adaptive:
         self.interval = time.output_interval
         self.loads = setup.case.loads.histories()
         self.memory = time.memory_time(self.loads)
-        self.per_step = time.control == "per-step"
+        self.per_step = time.sharing == "per-step"
         self.controller = Controller(scheme.order + 1, hold=True) if self.per_step else Controller(scheme.order)
         #: per step, an error that only bounds the next step (the splitting's defect, O(kₙ²) a step) has an err
         #: that goes as kₙ: a PI controller of its own, q = 1, settles it at 0.70 instead of q = 3's 0.35
@@ -195,10 +195,11 @@ class Adaptive:
         stats = [*self.setup.solvers.values(), *([self.setup.fluid.stats] if self.setup.fluid is not None else [])]
         return sum(st.factorizations for st in stats)
 
-    def error(self, state: State, new: State, dt: float,
-              record: dict[str, float]) -> tuple[dict[str, float] | None, dict[str, np.ndarray]]:
+    def error(self, state: State, new: State, dt: float, record: dict[str, float],
+              count: float) -> tuple[dict[str, float] | None, dict[str, np.ndarray]]:
         """(err of the step ``state`` → ``new`` per field, None before three old levels exist; the
-        ``echo.<field>`` the next step's :func:`unechoed` reads).
+        ``echo.<field>`` the next step's :func:`unechoed` reads). ``count`` is N_W with this step
+        (:func:`steps_in_memory`), the share of the tolerance under per-step control.
 
         A field's local error is the coupler's own estimate where it put one in
         ``new.extra["estimate.<field>"]`` (the splitting's), else the scheme's
@@ -213,8 +214,7 @@ class Adaptive:
             old[-1] = attrs.evolve(old[-1], extra={**old[-1].extra, "fluid.X": np.zeros_like(new.extra["fluid.X"])})
         k = [dt, old[0].t - old[1].t, old[1].t - old[2].t]
         levels = [fields(s) for s in old]
-        share = (steps_in_memory(record, new.t, dt, self.memory) if self.per_step  # a step may add tol/share
-                 else min(new.t, self.memory) / dt)
+        share = count if self.per_step else min(new.t, self.memory) / dt  # a step may add tol/share
         out, raw = {}, {}
         for name, x in fields(new).items():
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
@@ -260,7 +260,8 @@ class Adaptive:
             if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
                                    or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
                 record["refactorizations"] += self.factorizations() - counted
-            errors, raw = self.error(state, new, window.dt, record)
+            count = steps_in_memory(record, new.t, window.dt, self.memory)  # N_W with this step
+            errors, raw = self.error(state, new, window.dt, record, count)
             new = attrs.evolve(new, extra={k: v for k, v in new.extra.items() if not k.startswith("estimate.")})
             new = attrs.evolve(new, extra={**new.extra, **raw})
             err = None if errors is None else max((e for k, e in errors.items() if not k.startswith("next.")),
@@ -285,7 +286,7 @@ class Adaptive:
                     f"adaptive steps: after t = {new.t:.6g} s the error (err = {control:.3g} × time.tolerance) asks "
                     f"for a step of {proposal:.3g} s < time.dt_min = {self.lo:.3g} s: loosen time.tolerance or "
                     f"lower time.dt_min (every step up to t = {state.t:.6g} s is kept)")
-            record.update(steps_in_memory=steps_in_memory(record, new.t, window.dt, self.memory))
+            record.update(steps_in_memory=count)
             if err is not None and self.ahead is not None:  # per step: each error's own PI memory
                 record.update(err=err, err_next=ahead)
             elif err is not None:
@@ -366,7 +367,7 @@ def summary(record: dict[str, float] | None, case: Case) -> dict[str, object]:
     if time.tolerance is None or record is None:
         return {}
     return {"adaptive": {"tolerance": time.tolerance, "memory": time.memory_time(case.loads.histories()),
-                         "control": time.control or "per-unit-step",
+                         "control": time.sharing,
                          "accepted": int(record["accepted"]),
                          "rejected": int(record["rejected"]),
                          "dt_range": [record["smallest"], record["largest"]],
