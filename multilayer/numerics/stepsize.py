@@ -42,6 +42,8 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from multilayer.numerics.timescheme import bdf2_alpha
+
 #: the controller's exponents (Gustafsson's PI controller as in Hairer & Wanner, II §IV.2): the step
 #: factor is SAFETY · err^(−KI/q) · err_prev^(KP/q), q = 2 for an error per unit step of a second-order rule
 KI, KP = 0.7, 0.4
@@ -60,9 +62,9 @@ def predictor(old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
 
 
 def bdf2_alpha0(k: Sequence[float]) -> float:
-    """Variable-step BDF2's α₀ = (1 + 2ω)/(1 + ω) for the steps k = [kₙ, kₙ₋₁, ...], ω = kₙ/kₙ₋₁."""
-    w = k[0] / k[1]
-    return (1.0 + 2.0 * w) / (1.0 + w)
+    """Variable-step BDF2's α₀ = (1 + 2ω)/(1 + ω) (:func:`~multilayer.numerics.timescheme.bdf2_alpha`) for the
+    steps k = [kₙ, kₙ₋₁, ...], ω = kₙ/kₙ₋₁."""
+    return bdf2_alpha(k[0] / k[1])[0]
 
 
 def milne(scheme: str, k: Sequence[float]) -> float:

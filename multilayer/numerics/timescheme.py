@@ -117,8 +117,7 @@ class TimeScheme:
             raise ValueError(f"{self.name} is stable for step ratios below {self.max_ratio:.4g} (1 + √2), "
                              f"got {ratio:g}")
         w = float(ratio)
-        alpha = (1.5, -2.0, 0.5) if w == 1.0 else ((1.0 + 2.0 * w) / (1.0 + w), -(1.0 + w), w * w / (1.0 + w))
-        return attrs.evolve(self, alpha=alpha, ratio=w, previous=float(previous))
+        return attrs.evolve(self, alpha=bdf2_alpha(w), ratio=w, previous=float(previous))
 
     @property
     def max_ratio(self) -> float:
@@ -271,6 +270,16 @@ class TimeScheme:
         w, u, v = self.ratio, xs[0] - xs[1], xs[1] - xs[2]
         b, p = w * w / (1.0 + w), self.previous / (1.0 + self.previous)
         return (1.0 - w) * q(u) + b * q(u - v) + (p - b) * (q(2.0 * xs[1] - xs[2]) - q(xs[1]))
+
+
+def bdf2_alpha(w: float) -> tuple[float, float, float]:
+    """Variable-step BDF2's α = ((1 + 2ω)/(1 + ω), −(1 + ω), ω²/(1 + ω)) for the step ratio ω (the constant
+    step's (3/2, −2, 1/2) at ω = 1, exactly).
+
+    >>> bdf2_alpha(1.0), bdf2_alpha(2.0)[0]
+    ((1.5, -2.0, 0.5), 1.6666666666666667)
+    """
+    return (1.5, -2.0, 0.5) if w == 1.0 else ((1.0 + 2.0 * w) / (1.0 + w), -(1.0 + w), w * w / (1.0 + w))
 
 
 SCHEMES: dict[str, TimeScheme] = {
