@@ -21,7 +21,7 @@ from multilayer.numerics.timescheme import SCHEMES
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
 SPLITTING = 'coupler={model="kinematic-splitting",scheme="crank-nicolson",beta=1}'
-PER_STEP = 'time.control="per-step"'
+PER_UNIT_STEP = 'time.control="per-unit-step"'
 #: the tolerance each coupler is tested at
 TOLERANCE = {MONOLITHIC: "1e-3", SPLITTING: "1e-3"}
 
@@ -53,7 +53,7 @@ def test_adaptive_steps_close_the_ledger_and_report_their_steps(tmp_path, couple
     assert code == 0 and summary["status"] == "ok", summary["reason"]
     assert summary["energy"]["max_relative_residual"] < 1e-9
     adaptive = summary["adaptive"]
-    assert adaptive["control"] == "per-unit-step"
+    assert adaptive["control"] == "per-step"  # the default
     assert adaptive["accepted"] == summary["steps"] == len(rows)
     dts = np.array([float(r["dt"]) for r in rows])
     t = np.array([float(r["t"]) for r in rows])
@@ -75,10 +75,10 @@ def test_a_step_below_dt_min_stops_the_run_and_keeps_its_rows(tmp_path):
 
 @pytest.mark.parametrize("coupler", [MONOLITHIC, SPLITTING], ids=["monolithic-cn", "splitting-cn-beta1"])
 def test_an_adaptive_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, coupler):
-    """The controller's record (proposal, last error, peaks, counts) is the state's ``extra['clock']``, so a
-    checkpoint carries it, and the wall's reusing solver's held factors (the splitting's) too; the error is per
-    unit of elapsed time (not of time.end), so a run to 2 ms
-    resumed to 4 ms takes the steps of a run to 4 ms."""
+    """The controller's record (proposal, last error, peaks, counts, the per-step count N_W) is the state's
+    ``extra['clock']`` and Crank–Nicolson's last estimates its ``extra['echo.*']``, so a checkpoint carries them,
+    and the wall's reusing solver's held factors (the splitting's) too; the share of the tolerance is counted
+    over the elapsed time (not time.end), so a run to 2 ms resumed to 4 ms takes the steps of a run to 4 ms."""
     assert_resume_is_bit_identical(tmp_path, "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3", "time.dt=1e-6",
                                    coupler, f"time.tolerance={TOLERANCE[coupler]}", "time.output_interval=1e-3",
                                    every=10, half=0.002, end=0.004)
@@ -139,14 +139,15 @@ def test_a_study_puts_adaptive_and_fixed_runs_on_one_front(tmp_path):
 LIGHT = {MONOLITHIC: "1e-3", SPLITTING: "3e-1"}
 
 
-@pytest.mark.parametrize("coupler, control", [(MONOLITHIC, ()), (SPLITTING, ()), (MONOLITHIC, (PER_STEP,))],
-                         ids=["monolithic-cn", "splitting-cn-beta1", "monolithic-cn-per-step"])
+@pytest.mark.parametrize("coupler, control", [(MONOLITHIC, ()), (SPLITTING, ()), (MONOLITHIC, (PER_UNIT_STEP,))],
+                         ids=["monolithic-cn", "splitting-cn-beta1", "monolithic-cn-per-unit-step"])
 def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler, control):
     """ρ₁h/(ρ_f R) = 1e-3 (the light-wall scene of tests/test_coupled.py), adaptive steps capped at
     dt_max = 2.5e-5 over 0.05 s, so at least 2000 accepted steps: energy ≤ initial (0, from rest) + work at
-    every step, the ledger closed at every step (measured: monolithic at tol 1e-3 2 254 accepted steps,
-    the splitting at tol 3e-1 2 159; over 0.2 s with dt_max = 1e-4, monolithic took 3 262 steps, max
-    (E − W)/max|W| = −6e-25, residual ≤ 1.1e-12; with per-step control 4 129, −6.4e-25, ≤ 1.5e-12)."""
+    every step, the ledger closed at every step (measured: monolithic at tol 1e-3 2 307 accepted steps, the
+    splitting at tol 3e-1 2 025, monolithic per unit step 2 254; max (E − W)/max|W| ≤ −6.3e-25, residual
+    ≤ 1.9e-12; over 0.2 s with dt_max = 1e-4 monolithic took 4 129 steps, the splitting at 1e-2 28 335,
+    monolithic per unit step 3 262: docs/accuracy.md)."""
     code, summary, rows = run_cli(
         "pulse-koiter", tmp_path / "light",
         'layers[0]={ model = "koiter-shell", density = 1.0, thickness = 0.0005, young = 7.5e7, poisson = 0.49 }',
@@ -246,12 +247,12 @@ def test_the_splitting_estimate_sees_its_smooth_defect_and_not_the_alternating_o
     assert math.isclose(float(out["estimate.next.wall.d"][0]), k[0] * 0.5, rel_tol=1e-12)
 
 
-@pytest.mark.parametrize("control", [(), (PER_STEP,)], ids=["per-unit-step", "per-step"])
+@pytest.mark.parametrize("control", [(), (PER_UNIT_STEP,)], ids=["per-step", "per-unit-step"])
 def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_path, control):
     """The calibration of docs/accuracy.md on the coarse pulse (12 × 3 cells, 4 ms; η at z = 1, 2 cm against
-    monolithic CN at Δt = 2.5e-6): the relative L∞ error over the tolerance, measured 1.07 at 1e-2 and 1.07 at
-    1e-3; per step (its next-step error under a PI controller of its own, q = 1) 0.64 and 0.65 — with the step's
-    q = 3 it was 0.32 at 1e-2, outside the band; the acceptance's band is [1/3, 3]."""
+    monolithic CN at Δt = 2.5e-6): the relative L∞ error over the tolerance, measured per step (its next-step
+    error under a PI controller of its own, q = 1) 0.64 at 1e-2 and 0.65 at 1e-3 — with the step's q = 3 it was
+    0.32 at 1e-2, outside the band; per unit step 1.07 and 1.07; the acceptance's band is [1/3, 3]."""
     from multilayer.campaign.accuracy import probe_errors
     from multilayer.results.reading import read_run
 
@@ -272,11 +273,12 @@ def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_pa
 
 
 def test_per_step_control_shares_the_tolerance_among_the_steps_of_the_memory_time():
-    """``time.control = "per-step"``: err = e · N_W / tol with N_W the steps of the last W — for even steps the
-    per-unit-step allowance e · min(t, W)/(Δt · tol), exactly; the controller's error goes as Δt³."""
+    """Per-step control (the default): err = e · N_W / tol with N_W the steps of the last W — for even steps the
+    per-unit-step allowance e · min(t, W)/(Δt · tol), exactly; the controller's error goes as Δt³ (per unit step
+    as Δt²)."""
     from multilayer.coupling.clock import steps_in_memory
     time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-2, memory=0.5)
-    unit, step = clock_for(time), clock_for(attrs.evolve(time, control="per-step"))
+    step, unit = clock_for(time), clock_for(attrs.evolve(time, control="per-unit-step"))
     assert unit.controller.order == 2 and step.controller.order == 3
     record = {"steps_in_memory": 0.0}
     for n in range(1, 1001):  # even steps of 1e-3 to t = 1: 500 steps in W = 0.5, before and after t = W
@@ -317,16 +319,16 @@ def test_the_unechoed_estimate_drops_an_alternating_mode_and_keeps_a_smooth_erro
     assert math.isclose(abs(sign[0]), 8.0 / 13.0, rel_tol=1e-12)
 
 
-def test_per_step_adaptive_runs_close_the_ledger_and_resume_bit_identically(tmp_path):
-    """The per-step control's count N_W and Crank–Nicolson's last estimates (``echo.*``) are part of the
-    state: the ledger closes, the summary names the control, and a resumed run takes the same steps."""
+def test_per_unit_step_adaptive_runs_close_the_ledger_and_resume_bit_identically(tmp_path):
+    """``time.control = "per-unit-step"``: the ledger closes, the summary names the control, and a resumed run
+    takes the same steps (its controller's record is the state's, as per step)."""
     code, summary, rows = run_cli("pulse-koiter-thick", tmp_path / "a", *SMALL, MONOLITHIC, "time.tolerance=1e-3",
-                                  PER_STEP, "time.output_interval=1e-3")
+                                  PER_UNIT_STEP, "time.output_interval=1e-3")
     assert code == 0 and summary["status"] == "ok", summary["reason"]
-    assert summary["adaptive"]["control"] == "per-step"
+    assert summary["adaptive"]["control"] == "per-unit-step"
     assert summary["energy"]["max_relative_residual"] < 1e-9
     assert all(float(r["error.local"]) <= 1.0 for r in rows)
     assert len({float(r["dt"]) for r in rows}) > 10
     assert_resume_is_bit_identical(tmp_path / "resume", "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3",
-                                   "time.dt=1e-6", MONOLITHIC, "time.tolerance=1e-3", PER_STEP,
+                                   "time.dt=1e-6", MONOLITHIC, "time.tolerance=1e-3", PER_UNIT_STEP,
                                    "time.output_interval=1e-3", every=10, half=0.002, end=0.004)

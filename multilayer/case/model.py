@@ -46,7 +46,7 @@ class TimeSpec:
     dt_max: float | None = None  #: adaptive steps: the largest step (s; None: no bound)
     output_interval: float | None = None  #: adaptive steps land on its multiples (s)
     memory: float | None = None  #: adaptive steps: the memory time W (s; None: the loads' shortest period, or end)
-    control: str | None = None  #: adaptive steps: "per-unit-step" (None) or "per-step" (multilayer.coupling.clock)
+    control: str | None = None  #: adaptive steps: "per-step" (None) or "per-unit-step" (multilayer.coupling.clock)
 
     @property
     def adaptive(self) -> bool:
@@ -55,8 +55,8 @@ class TimeSpec:
 
     @property
     def sharing(self) -> str:
-        """How an adaptive run shares its tolerance among its steps: ``control``, by default "per-unit-step"."""
-        return self.control or "per-unit-step"
+        """How an adaptive run shares its tolerance among its steps: ``control``, by default "per-step"."""
+        return self.control or "per-step"
 
     @property
     def smallest(self) -> float:

@@ -32,7 +32,7 @@ MESH = (
     Param("grading", default=1.0, ge=1.0, doc="fluid refinement toward the wall (1 = uniform)"),
 )
 #: how an adaptive run shares its tolerance among its steps (multilayer.coupling.clock)
-CONTROLS = ("per-unit-step", "per-step")
+CONTROLS = ("per-step", "per-unit-step")
 TIME = (
     Param("end", "T", "s", gt=0.0, doc="final time"),
     Param("dt", "Δt", "s", gt=0.0, doc="time step (with tolerance: the first step)"),
@@ -46,12 +46,12 @@ TIME = (
     Param("output_interval", "", "s", default=None, gt=0.0,
           doc="adaptive steps: a step lands on every multiple of it (snapshots are written there)"),
     Param("memory", "W", "s", default=None, gt=0.0,
-          doc="adaptive steps: the error per unit time is measured over min(t, W); unset: the loads' shortest "
-              "period, or time.end when no load repeats"),
+          doc="adaptive steps: the span the tolerance is shared over (among its steps, or per unit of min(t, W)); "
+              "unset: the loads' shortest period, or time.end when no load repeats"),
     Param("control", type=str, default=None, choices=CONTROLS,
-          doc="adaptive steps: how the tolerance is shared among the steps: 'per-unit-step' (a step's local error in "
-              "proportion to its length; unset) or 'per-step' (every step of the span W the same local error: the "
-              "fewest steps for an error that adds up)"),
+          doc="adaptive steps: how the tolerance is shared among the steps: 'per-step' (every step of the span W the "
+              "same local error: the fewest steps for an error that adds up; unset) or 'per-unit-step' (a step's "
+              "local error in proportion to its length)"),
 )
 #: the keys of [time] that only adaptive steps (time.tolerance) read
 ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory", "control")

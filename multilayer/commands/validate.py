@@ -68,8 +68,10 @@ def time_line(t: TimeSpec) -> str:
 
     >>> time_line(TimeSpec(end=3.0, dt=2e-3))
     '1500 steps of 0.002 s to 3 s'
-    >>> time_line(TimeSpec(end=3.0, dt=1e-4, tolerance=1e-3, dt_max=8e-3, control="per-step"))
-    'adaptive steps to 3 s: tolerance 0.001 (per-step), first step 0.0001 s, at most 0.008 s'
+    >>> time_line(TimeSpec(end=3.0, dt=1e-4, tolerance=1e-3, dt_max=8e-3, control="per-unit-step"))
+    'adaptive steps to 3 s: tolerance 0.001 (per-unit-step), first step 0.0001 s, at most 0.008 s'
+    >>> time_line(TimeSpec(end=0.012, dt=1e-6, tolerance=1e-2))
+    'adaptive steps to 0.012 s: tolerance 0.01 (per-step), first step 1e-06 s'
     """
     if not t.adaptive:
         return f"{t.steps} steps of {t.dt:g} s to {t.end:g} s"

@@ -18,26 +18,29 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   state's ``extra["estimate.<field>"]`` (used instead), and an error that
   only bounds the next step in ``extra["estimate.next.<field>"]`` (the
   kinematic splitting: theory §4, "The splitting's error");
-* e is asked per unit of elapsed time, over at most the memory time W
-  (``time.memory``; by default the loads' shortest period, or ``time.end``
-  when no load repeats): err = e · min(tⁿ⁺¹, W) / (kₙ · tol) ≤ 1, so a step
-  may add tol·kₙ/min(tⁿ⁺¹, W) of the field's size and the errors of any span
-  W add up to about tol — on a periodic run the allowed local error stops
-  shrinking after one period; without a period it is the run's relative error;
-* or, with ``time.control = "per-step"``, every step of the span W is allowed
-  the same share of tol: err = e · N_W / tol, N_W the steps of the last W
-  (all of them while tⁿ⁺¹ ≤ W; after, a count that forgets a step at the
-  rate 1/W, :func:`steps_in_memory`). That is kₙ replaced by the span's mean
-  step min(t, W)/N_W: for even steps the same allowance, but steps in
+* every step of the span W is allowed the same share of tol (``time.control``
+  "per-step", the default): err = e · N_W / tol, N_W the steps of the last span
+  W, the memory time (``time.memory``; by default the loads' shortest period,
+  or ``time.end`` when no load repeats): all of the steps while tⁿ⁺¹ ≤ W;
+  after, a count that forgets a step at the rate 1/W (:func:`steps_in_memory`).
+  That is kₙ of the control below replaced by the span's mean step
+  min(t, W)/N_W: for even steps the same allowance, but steps in
   proportion to |x'''|^(−1/3) instead of |x'''|^(−1/2), the fewest for errors
   that add up (``scripts/step_bound.py``); err then goes as kₙ^(p+1). A step
   is charged for the error it makes, not for what earlier steps left: with
   Crank–Nicolson its estimate drops the echo of an undamped (−1)ⁿ mode
   (:func:`unechoed`), which would otherwise be charged again at every step
   and, N_W growing as the steps shrink, drive them to ``time.dt_min``;
+* or, with ``time.control = "per-unit-step"``, e is asked per unit of elapsed
+  time, over at most the memory time W: err = e · min(tⁿ⁺¹, W) / (kₙ · tol), so a step
+  may add tol·kₙ/min(tⁿ⁺¹, W) of the field's size and the errors of any span
+  W add up to about tol — on a periodic run the allowed local error stops
+  shrinking after one period; without a period it is the run's relative error;
 * Gustafsson's PI controller (:class:`~multilayer.numerics.stepsize.Controller`)
-  proposes the next step from the larger of err and the next-step errors;
-  a step with err > 1 is rejected and retried
+  proposes the next step: per step from err with q = p + 1 and, by a
+  controller of their own with q = 1, from the next-step errors, the smaller
+  of the two; per unit step from the larger of err and the next-step errors
+  with q = p; a step with err > 1 is rejected and retried
   smaller; one that would go below ``time.dt_min`` stops the run
   (:class:`SchemeFailure`, every row so far kept);
 * the first two steps are ``time.dt`` (the estimate needs three old levels);

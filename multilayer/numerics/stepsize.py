@@ -45,7 +45,8 @@ import numpy as np
 from multilayer.numerics.timescheme import bdf2_alpha
 
 #: the controller's exponents (Gustafsson's PI controller as in Hairer & Wanner, II §IV.2): the step
-#: factor is SAFETY · err^(−KI/q) · err_prev^(KP/q), q = 2 for an error per unit step of a second-order rule
+#: factor is SAFETY · err^(−KI/q) · err_prev^(KP/q), q = 3 for the error per step of a second-order rule (q = 2
+#: per unit step)
 KI, KP = 0.7, 0.4
 SAFETY = 0.9
 #: bounds of the factor after an accepted step, and after a rejected one
