@@ -14,9 +14,9 @@ from threadpoolctl import threadpool_info
 
 import multilayer as ml
 from multilayer import api
-from multilayer.results.folder import ResultsError
 from multilayer.case.keys import parse_value
 from multilayer.commands.main import main
+from multilayer.results.folder import ResultsError
 from multilayer.runner import ledger
 from multilayer.runner.loop import run_case
 
