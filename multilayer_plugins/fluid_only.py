@@ -69,7 +69,7 @@ class FluidOnly(Coupler):
             stored, work, dissipation = fluid_groups(f)
             yield state, StepReport(stored, work, dissipation,
                                     {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"],
-                                     **fluid_columns(f)})
+                                     **fluid_columns(f)}, alpha=S.alpha)
 
 
 @hookimpl

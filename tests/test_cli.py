@@ -148,7 +148,8 @@ def test_failed_run_exits_1(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(loop, "run_case",
                         lambda case, out, registry, **kw: types.SimpleNamespace(status="failed", reason="wall collapse",
                                                                                 steps=0, t=0.0, peaks={},
-                                                                                max_relative_residual=0.0))
+                                                                                max_relative_residual=0.0,
+                                                                                volume_drift=None))
     assert main(["run", str(write(tmp_path, SHELL)), "--out", str(tmp_path / "o")]) == 1
     assert "run failed: wall collapse" in capsys.readouterr().err
 

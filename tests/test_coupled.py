@@ -45,12 +45,20 @@ def test_the_coupled_cases_are_bundled():
 @pytest.mark.parametrize("coupler", LEDGER)
 @pytest.mark.parametrize("case", COUPLED)
 def test_coupled_case_ledger_closes_every_step(case, coupler, tmp_path):
-    code, summary, s = run(case, tmp_path / case, *COARSE, f"coupler={LEDGER[coupler]}")
+    # the splitting's volume drifts on these short coarse runs (theory §7, "Volume"): the energy is tested here
+    margin = ("solver.volume_margin=2",) if coupler.startswith("splitting") else ()
+    code, summary, s = run(case, tmp_path / case, *COARSE, f"coupler={LEDGER[coupler]}", *margin)
     assert code == 0 and summary["status"] == "ok"
     assert summary["steps"] == len(s["t"]) == 20
     # measured: ≤ 1.5e-12 relative over every coarsened case and coupler (42 runs, a38cdfe; Krylov solves to 1e-12 of ‖b‖)
     assert np.all(s["energy.relative_residual"] <= 1e-9)
     assert summary["energy"]["max_relative_residual"] <= 1e-9
+    # a wall that moves with the fluid's velocity keeps the volume: to round-off in a planar channel (theory §7),
+    # to the interface tolerance (1e-8) under sub-iterations (measured ≤ 2.4e-8 relative a step, 3.4e-9 drift)
+    planar = summary["case"]["geometry"]["kind"] == "planar"
+    if planar and not coupler.startswith("splitting"):
+        tolerance = 1e-7 if coupler == "dn-implicit" else 1e-9
+        assert summary["volume"]["max_relative_residual"] <= tolerance, summary["volume"]
     # the pulse moves the wall and the fluid
     assert np.max(np.abs(s["eta_z1"])) > 0 and np.max(s["q_in"]) > 0
 

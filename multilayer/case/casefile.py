@@ -245,7 +245,8 @@ class _Validator:
                                          f"'double' with linear = {solver['linear']!r} (single-precision factors "
                                          f"need linear = one of {list(SINGLE)})"))
         parts["solver"] = self.part("solver", mark, lambda: solver["linear"])
-        parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"]))
+        parts["limits"] = self.part("solver", mark, lambda: Limits(solver["max_displacement"], solver["energy_margin"],
+                                                                    solver["volume_margin"]))
         parts["reuse"] = self.part("solver", mark,
                                    lambda: Reuse(solver["reuse"], solver["max_iterations"], solver["tolerance"],
                                                  solver["factors"], solver["factorization_cost"]))

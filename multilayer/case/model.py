@@ -155,6 +155,7 @@ class Limits:
 
     max_displacement: float = 0.5  #: |η| on the lumen, as a fraction of R
     energy_margin: float = 0.01  #: E − (E⁰ + work), as a fraction of max(|E⁰| + |work|, E)
+    volume_margin: float = 0.05  #: |Σ volume residual|, as a fraction of the volume moved
 
 
 @attrs.frozen

@@ -100,6 +100,9 @@ SOLVER = (
           doc="stop the run when |η| on the lumen exceeds this fraction of R"),
     Param("energy_margin", default=0.01, gt=0.0,
           doc="stop the run when the energy exceeds initial energy + work by this fraction of their scale"),
+    Param("volume_margin", default=0.05, gt=0.0,
+          doc="stop the run when the lumen's volume and the flow through its ends disagree by this fraction of "
+              "the volume moved so far (the volume ledger, volume.drift)"),
 )
 
 
@@ -111,7 +114,7 @@ STEPS_TOL = 1e-6
 RESERVED_COLUMNS = ("step", "t", "iterations", "dt", "landed")
 #: ... and every column of the energy ledger and of the ends' and couplers' diagnostics, by its prefix.
 RESERVED_PREFIXES = ("energy.", "kinetic.", "elastic.", "stored.", "work.", "dissipation.", "end.", "interface.",
-                     "error.")
+                     "error.", "volume.")
 
 
 def reserved_column(name: str) -> bool:

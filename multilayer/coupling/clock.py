@@ -95,7 +95,7 @@ def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance) -> I
     if not setup.case.time.adaptive:
         for n, t0, t1 in setup.windows(state.n):
             state, report = advance(state, Window(n, t0, t1, setup.dt, scheme))
-            yield state, report
+            yield state, attrs.evolve(report, alpha=scheme.alpha)
         return
     yield from Adaptive(setup, scheme).march(state, advance)
 
@@ -304,7 +304,7 @@ class Adaptive:
                                              self.size(x, old_fields.get(name, 0.0 * x), new.t, window.dt))
             landed = float(new.t == self.output_time(state.t))
             state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
-            yield state, attrs.evolve(report, diagnostics={
+            yield state, attrs.evolve(report, alpha=window.scheme.alpha, diagnostics={
                 **report.diagnostics, "dt": window.dt, "error.local": 0.0 if err is None else err, "landed": landed,
                 "error.next": ahead, **{f"error.{name}": (errors or {}).get(name, 0.0) for name in FIELDS}})
 

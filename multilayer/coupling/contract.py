@@ -28,12 +28,16 @@ class StepReport:
     take out (a geometric remainder may be negative).  The runner closes
     the ledger from them: Eⁿ⁺¹ − Eⁿ − work + dissipation = 0.
     ``diagnostics`` are extra columns (e.g. each sub-step's own residual).
+    ``alpha`` are the weights of the step's difference quotient,
+    Σ α_k x^{n+1−k} = Δt x̄' (newest level first): the volume ledger
+    balances the lumen's volume in that form (theory §7, "Volume").
     """
 
     stored: Mapping[str, float] = attrs.field(factory=dict)
     work: Mapping[str, float] = attrs.field(factory=dict)
     dissipation: Mapping[str, float] = attrs.field(factory=dict)
     diagnostics: Mapping[str, float] = attrs.field(factory=dict)
+    alpha: tuple[float, ...] = (1.0, -1.0)
 
 
 class SchemeFailure(Exception):

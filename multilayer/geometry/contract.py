@@ -88,6 +88,40 @@ class Geometry(ABC):
             return rate
         return rate * sum(J_after**i * J_before ** (self.radial_power - i) for i in range(self.radial_power + 1))
 
+    def section(self, radius: Any) -> Any:
+        """The section 0 < r < ``radius`` per unit z: ∫₀^radius weight(r) dr = radius·weight(radius)/(1+k).
+
+        The lumen's volume is the integral of its section along z (theory §7, "Volume"):
+        R + η per unit depth in a planar channel, π(R + η)² in a tube.
+
+        >>> class Tube(Geometry):
+        ...     radial_power = 1
+        ...     def weight(self, r):
+        ...         return 2.0 * np.pi * np.asarray(r, dtype=float)
+        >>> round(float(Tube().section(2.0)) / np.pi, 12)
+        4.0
+        """
+        radius = np.asarray(radius, dtype=float)
+        return radius * np.asarray(self.weight(radius), dtype=float) / (1 + self.radial_power)
+
+    def section_change(self, before: Any, after: Any) -> Any:
+        """section(after) − section(before) without the cancellation of the difference (theory §7, "Volume").
+
+        weight = c rᵏ makes the section c ρ^{1+k}/(1+k); its difference is
+        c/(1+k) (after − before) Σᵢ afterⁱ beforeᵏ⁻ⁱ, as :meth:`stretch_rate` factors J^{1+k}.
+
+        >>> class Tube(Geometry):
+        ...     radial_power = 1
+        ...     def weight(self, r):
+        ...         return np.asarray(r, dtype=float)
+        >>> h = 2.0 ** -40  # (1 + h)²/2 − 1/2 = h + h²/2, exact here where the subtraction keeps about 4 digits
+        >>> float(Tube().section_change(1.0, 1.0 + h)) == h + h * h / 2
+        True
+        """
+        before, after = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
+        c = float(np.asarray(self.weight(np.array([1.0])))[0])
+        return c / (1 + self.radial_power) * self.stretch_rate(before, after, after - before)
+
     def weighted(self, basis: Any, radius: float | None = None) -> Any:
         """``basis`` with its quadrature weights ``dx`` multiplied by the measure, in place; returned.
 

@@ -47,6 +47,7 @@ from multilayer.case.model import Case
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.files import atomic_file
+from multilayer.runner.volume import VolumeLedger
 from multilayer.scene.state import State, WallState
 from multilayer.version import __version__
 
@@ -213,16 +214,17 @@ def _tally_data(tally: Any, wall_time_s: float) -> dict[str, Any]:
             "steps": int(tally.steps), "t": float(tally.t), "max_rel": float(tally.max_rel),
             "iterations": np.asarray(tally.iterations, dtype=float),
             "peaks": {k: float(v) for k, v in tally.peaks.items()},
-            "wall_time_s": float(tally.wall_time_s + wall_time_s)}
+            "wall_time_s": float(tally.wall_time_s + wall_time_s),
+            "volume": tally.volume.to_data() if tally.volume is not None else None}
 
 
 def _tally_from_data(data: Any) -> Any:
     from multilayer.runner.stepping import EnergyBound, Tally
 
     numbers = ("previous", "t", "max_rel", "wall_time_s")
-    if not isinstance(data, dict) or set(data) != {*numbers, "bound", "steps", "iterations", "peaks"}:
+    if not isinstance(data, dict) or set(data) != {*numbers, "bound", "steps", "iterations", "peaks", "volume"}:
         raise ValueError("the tally should have the fields previous, bound, steps, t, max_rel, iterations, peaks, "
-                         "wall_time_s")
+                         "wall_time_s, volume")
     if not all(isinstance(data[k], float) for k in numbers) or not isinstance(data["steps"], int):
         raise ValueError("the tally's previous, t, max_rel, wall_time_s should be numbers, its steps a whole number")
     bound = data["bound"]
@@ -237,8 +239,9 @@ def _tally_from_data(data: Any) -> Any:
         raise ValueError("the tally's peaks should map probes to numbers")
     energy = EnergyBound(bound["initial"], bound["margin"])
     energy.work, energy.scale = bound["work"], bound["scale"]
+    volume = VolumeLedger.from_data(data["volume"]) if data["volume"] is not None else None
     return Tally(data["previous"], energy, data["steps"], data["t"], data["max_rel"],
-                 [float(x) for x in iterations], dict(peaks), data["wall_time_s"])
+                 [float(x) for x in iterations], dict(peaks), data["wall_time_s"], volume=volume)
 
 
 def _snapshots_from_data(data: Any) -> dict[str, list[tuple[float, str]]]:

@@ -76,6 +76,8 @@ class RunResult:
     max_relative_residual: float = 0.0
     t: float = 0.0
     peaks: dict = attrs.field(factory=dict)  #: max |value| of every η probe
+    #: the volume ledger's drift over the volume moved (None without a fluid)
+    volume_drift: float | None = None
 
 
 class Interrupted(Exception):
@@ -275,6 +277,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "factorizations": _factorizations(setup),
         "krylov": _krylov(setup),
         "energy": {"max_relative_residual": tally.max_rel},
+        **({"volume": tally.volume.summary()} if tally.volume is not None else {}),
         **_iterations(tally.iterations),
         **({"resumed_from": resumed_from} if saved is not None else {}),
         **({"checkpoint": {"every": checkpoint_every, "file": checkpoint.FILE, "arrays": checkpoint.ARRAYS}}
@@ -285,7 +288,8 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         results.write_summary(summary)
     finally:
         results.release()
-    return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks))
+    return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks),
+                     tally.volume.relative_drift if tally.volume is not None else None)
 
 
 class Writers:

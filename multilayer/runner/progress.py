@@ -32,9 +32,13 @@ class ProgressBar:
 
 
 def summary(result, wall_time_s: float, folder: Path, checkpoint: bool = False) -> str:
-    """A few lines: status, steps, wall time, ledger residual, peak |η| per probe, where the results are."""
+    """A few lines: status, steps, wall time, ledger residuals (energy, volume), peak |η| per probe, where the
+    results are."""
+    volume = ""
+    if result.volume_drift is not None:
+        volume = f", volume to {result.volume_drift:.1e} of the volume moved"
     lines = [f"{result.status}: {result.steps} steps to t = {result.t:.6g} s in {wall_time_s:.3g} s; "
-             f"energy ledger closes to {result.max_relative_residual:.1e} (relative)"]
+             f"energy ledger closes to {result.max_relative_residual:.1e} (relative){volume}"]
     if result.reason:
         lines.append(f"  {result.reason}")
     if result.peaks:

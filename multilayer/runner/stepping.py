@@ -7,14 +7,15 @@ snapshots, checkpoints, signals and the summary; the Python API
 to the caller.  Per step, in this order:
 
 1. the coupler advances the state (``coupler.evolve``);
-2. the energy ledger closes (:func:`multilayer.runner.ledger.close`);
+2. the energy ledger closes (:func:`multilayer.runner.ledger.close`), and
+   with a fluid the volume ledger (:class:`multilayer.runner.volume.VolumeLedger`);
 3. the state is checked (:func:`check_state`: non-finite values, a wall
    collapsing or blown out) — a failure here keeps no row of the step;
 4. the probes are evaluated and the step's row is handed to the output;
 5. the tally counts the step (steps, time, largest residual, peak |η|) and
    the output writes its fields (snapshots when due);
-6. the energy bound is checked (:class:`EnergyBound`) — after the row is
-   written, so the row that breaks it is kept;
+6. the energy bound (:class:`EnergyBound`) and the volume margin are
+   checked — after the row is written, so the row that breaks them is kept;
 7. the :class:`Step` is yielded.
 """
 
@@ -31,6 +32,7 @@ import numpy as np
 
 from multilayer.coupling.contract import Coupler
 from multilayer.runner import ledger
+from multilayer.runner.volume import LumenVolume, VolumeLedger
 from multilayer.scene.setup import Setup
 from multilayer.scene.state import State
 
@@ -105,12 +107,15 @@ class Tally:
     wall_time_s: float = 0.0  #: wall time of earlier sessions of a resumed run
     #: the adaptive steps' controller record of the latest state (``State.extra["clock"]``; None for fixed steps)
     clock: dict | None = None
+    #: the volume ledger (a run with a fluid)
+    volume: VolumeLedger | None = None
 
     @classmethod
     def start(cls, setup: Setup, coupler: Coupler, state: State) -> Tally:
-        """The tally of a run starting from ``state``: its stored energy, the case's energy margin."""
+        """The tally of a run starting from ``state``: its stored energy, the case's energy and volume margins."""
         energy = sum(coupler.energy(setup, state).values())
-        return cls(energy, EnergyBound(energy, setup.case.limits.energy_margin))
+        volume = VolumeLedger(setup.case.limits.volume_margin) if state.eta is not None else None
+        return cls(energy, EnergyBound(energy, setup.case.limits.energy_margin), volume=volume)
 
 
 @attrs.frozen(eq=False)
@@ -185,10 +190,13 @@ def iterate_steps(setup: Setup, coupler: Coupler, state: State, tally: Tally, pr
     generator closes the coupler's.
     """
     eta_probes = [p.name for p in setup.case.output.probes if p.quantity == "eta"]
+    meter = LumenVolume(setup.fluid.line) if tally.volume is not None else None
     with contextlib.closing(coupler.evolve(setup, state)) as advancing:
         for new, report in advancing:
             terms = ledger.close(report.stored, tally.previous, report.work, report.dissipation)
             tally.previous = terms["energy.total"]
+            if meter is not None:
+                terms.update(tally.volume.close(meter, new, report.alpha, report.diagnostics))
             check_state(setup, new, {**terms, **report.diagnostics})
             tally.iterations.append(report.diagnostics.get("iterations", math.nan))
             t_out = time.perf_counter()
@@ -211,4 +219,8 @@ def iterate_steps(setup: Setup, coupler: Coupler, state: State, tally: Tally, pr
                 if not note:
                     raise
                 raise RunFailed(f"{exc}{note}") from exc
+            if meter is not None:
+                lost = tally.volume.excess(new.t, terms["volume.fluid"])
+                if lost:
+                    raise RunFailed(lost)
             yield step
