@@ -119,8 +119,7 @@ class Geometry(ABC):
         True
         """
         before, after = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
-        c = float(np.asarray(self.weight(np.array([1.0])))[0])
-        return c / (1 + self.radial_power) * self.stretch_rate(before, after, after - before)
+        return self.line_weight(1.0) / (1 + self.radial_power) * self.stretch_rate(before, after, after - before)
 
     def weighted(self, basis: Any, radius: float | None = None) -> Any:
         """``basis`` with its quadrature weights ``dx`` multiplied by the measure, in place; returned.

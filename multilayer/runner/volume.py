@@ -35,11 +35,11 @@ import numpy as np
 import scipy.sparse as sp
 import skfem
 
+from multilayer.coupling.kit import AXIAL
+from multilayer.fluid.contract import ENDS
 from multilayer.geometry.spaces import LineSpace
 from multilayer.scene.state import State
 
-#: the ends whose outward fluxes ``end.<end>.Q`` the fluid reports
-ENDS = ("inlet", "outlet")
 #: a step's volume scale never below this fraction of the lumen's volume (round-off of V itself)
 FLOOR = 1e-13
 
@@ -88,12 +88,12 @@ class LumenVolume:
                eta_z_new: np.ndarray | None = None) -> float:
         """V(new) − V(old), formed as ∫ [A(ρ₁) − A(ρ₀)](1 + s₁) + A(ρ₀)(s₁ − s₀) without cancelling V."""
         geometry = self.line.geometry
-        rho0, s0 = self._at(eta_old, eta_z_old)
+        rho0, _ = self._at(eta_old, eta_z_old)
         rho1, s1 = self._at(eta_new, eta_z_new)
         axial = 0.0
-        if eta_z_old is not None or eta_z_new is not None:
-            d = (self._slope @ ((0.0 if eta_z_new is None else eta_z_new) - (0.0 if eta_z_old is None else eta_z_old)))
-            axial = geometry.section(rho0) * d.reshape(self._shape)
+        if eta_z_old is not None or eta_z_new is not None:  # s₁ − s₀ from d_z's change, not from 1 + s each
+            z0, z1 = (np.zeros_like(eta_old) if z is None else z for z in (eta_z_old, eta_z_new))
+            axial = geometry.section(rho0) * (self._slope @ (z1 - z0)).reshape(self._shape)
         return float(np.sum(self._dx * (geometry.section_change(rho0, rho1) * s1 + axial)))
 
 
@@ -108,7 +108,7 @@ def _evaluator(cols: np.ndarray, values: np.ndarray, n: int):
 
 def lumen(state: State) -> tuple[np.ndarray | None, np.ndarray | None]:
     """(η, d_z) of the fluid's domain in ``state``: d_z only under no-slip at a thick band (``extra["eta_z"]``)."""
-    return state.eta, state.extra.get("eta_z")
+    return state.eta, state.extra.get(AXIAL[0])
 
 
 @attrs.define
