@@ -7,27 +7,37 @@ A1 — the structure step: all layers together, fluid frozen, a matrix
      interface trace (the kinematic condition).  With ``beta`` > 0 the thin
      layer is also loaded by β times the fluid's force on it, extrapolated
      from the previous steps (the β-scheme of Bukač, Čanić, Glowinski et al.).
-A2 — the fluid step on the domain the structure step left, with the ALE
-     velocity of A1 and the thin layer's inertia as the Robin term
-     (α₀/β₀)M/Δt (v̄ − …) on the wall's u_r rows, minus the β share of the
-     force A1 already applied: no added-mass instability.
+A2 — the fluid step on the domain the structure step left, with a Robin
+     term R(v̄ − V̄_Γ) on the wall's u_r rows, minus the β share of the force
+     A1 already applied: no added-mass instability.  ``robin``:
+     ``"inertia"`` takes R = (α₀/β₀)M/Δt, the thin layer's inertia (the
+     paper's); ``"impedance"`` (the default) takes R = S_Γ, the whole wall
+     step condensed on Γ (:func:`interface_impedance`), and
+A3 — completes the wall's step under the fluid's force: one product with
+     the kept A⁻¹P, after which the wall moves with the fluid (V̄_Γ = v̄)
+     and the lumen's volume follows the flow through the ends.
 
-``scheme = "backward-euler"`` with ``beta = 0`` is the scheme of the seed
-paper (first order).  ``scheme = "crank-nicolson"`` runs both sub-steps as
+``robin = "inertia"``, ``scheme = "backward-euler"``, ``beta = 0`` is the
+scheme of the seed paper (first order).  ``scheme = "crank-nicolson"`` runs both sub-steps as
 refactorized midpoint steps (a backward-Euler step of Δt/2, then
 x^{n+1} = 2x̄ − xⁿ), the fluid on the midpoint domain (ηⁿ + η^{n+1})/2; with
 ``beta = 1`` the structure step sees the fluid's force at the previous
 midpoint and the splitting error drops to second order in Δt (derivation
 in docs/theory.md).
 
-The energy identity of a step is the sum of the A1 and A2 identities: the
-thin layer's kinetic energy after A1 is the one A2 starts from, and the β
-force enters A1 and A2 with opposite signs, leaving −Δt β τ̃·(V̄_Γ − v̄) as
-the column ``dissipation.beta`` (a term of the scheme, of either sign, not
-work of a load: the energy bound E ≤ E⁰ + work counts loads only).
+Under the paper's Robin term the energy identity of a step is the sum of
+the A1 and A2 identities: the thin layer's kinetic energy after A1 is the
+one A2 starts from, and the β force enters A1 and A2 with opposite signs,
+leaving −Δt β τ̃·(V̄_Γ − v̄) as the column ``dissipation.beta`` (a term of
+the scheme, of either sign, not work of a load: the energy bound
+E ≤ E⁰ + work counts loads only).  Under the impedance it is A3's plus
+A2's, the fluid's force cancelling between them as in a monolithic step;
+the fluid keeps its own sequence of domains (A1's, ``FLUID_ETA``), so that
+its kinetic energy is measured on the domains it was solved on.
 
 With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
-:mod:`multilayer.coupling.clock`) with its own error estimate (:meth:`KinematicSplitting.estimate`);
+:mod:`multilayer.coupling.clock`), under the paper's Robin term with its own error estimate
+(:meth:`KinematicSplitting.estimate`);
 the wall is factorized again when Δt changes, τ̃ of ``extrapolation = 2``
 is extrapolated over the uneven steps.
 """
@@ -38,13 +48,16 @@ from collections.abc import Iterator
 
 import attrs
 import numpy as np
+import scipy.sparse as sp
 
 from multilayer.coupling.clock import Window, march, old_levels
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import (
+    FLUID_ETA,
     coupled_case_problems,
     external_force,
     fluid_columns,
+    fluid_eta,
     fluid_groups,
     lumen_layers,
     lumen_mass,
@@ -54,7 +67,7 @@ from multilayer.coupling.kit import (
     window_loads,
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
-from multilayer.fluid.contract import Domain, Interface
+from multilayer.fluid.contract import ENDS, Domain, Interface
 from multilayer.numerics.stepsize import local_error
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
@@ -64,9 +77,18 @@ from multilayer.scene.state import State
 from multilayer.wall.stack import LUMEN
 
 SCHEMES = ("backward-euler", "crank-nicolson")
+#: the Robin operator of the fluid step: the wall step's impedance on Γ, or the thin layer's inertia (the paper's)
+ROBINS = ("impedance", "inertia")
 #: why the splitting cannot take a fluid directly on a thick band
-THICK_LUMEN = ("its fluid step carries the thin layer's inertia ρ₁h/Δt as the Robin term on Γ, and with no thin "
-              "mass there the splitting loses its added-mass stability")
+THICK_LUMEN = ("its steps hand over the thin layer's radial motion on Γ (and, with robin = 'inertia', its Robin term "
+               "is that layer's mass ρ₁h/Δt, without which it loses its added-mass stability), while a band at the "
+               "fluid moves in both components")
+
+
+#: why the paper's Robin term cannot take a prescribed inflow
+INERTIA_LEAK = ("its fluid step sees the wall as the thin layer's mass alone, so the fluid leaves through Γ faster "
+                "than the wall moves, by (ω₁Δt)² with ω₁² = k/(ρ₁h) the wall's stiffness over that mass, and the "
+                "prescribed inflow is lost through the wall (docs/theory.md, 'Volume')")
 
 
 class KinematicSplitting(Coupler):
@@ -75,18 +97,34 @@ class KinematicSplitting(Coupler):
     schemes = SCHEMES
     adaptive = ("crank-nicolson",)
 
-    def __init__(self, scheme: str = "backward-euler", beta: float = 0.0, extrapolation: int = 1):
+    def __init__(self, scheme: str = "backward-euler", beta: float | None = None, extrapolation: int = 1,
+                 robin: str = "impedance"):
         super().__init__(scheme)
+        if robin not in ROBINS:
+            raise ValueError(f"robin {robin!r} is not one of {', '.join(ROBINS)}")
+        if beta is None:  # the impedance's A1 predicts the domain under the fluid's force; the paper's has none
+            beta = 1.0 if robin == "impedance" else 0.0
         if not 0.0 <= beta <= 1.0:
             raise ValueError(f"beta must be in [0, 1], got {beta!r}")
         if extrapolation not in (1, 2):
             raise ValueError(f"extrapolation must be 1 or 2, got {extrapolation!r}")
         self.beta = float(beta)
         self.extrapolation = int(extrapolation)
+        self.robin = robin
+
+    def fluid_interface_block(self, case) -> bool:
+        """The wall's impedance couples every two DOFs of Γ (the whole wall behind it condensed on the line)."""
+        return self.robin == "impedance"
 
     def check_case(self, case) -> list[str]:
-        return (super().check_case(case) + coupled_case_problems(self.name, case)
-                + thin_lumen_problems(self.name, case, THICK_LUMEN))
+        problems = (super().check_case(case) + coupled_case_problems(self.name, case)
+                    + thin_lumen_problems(self.name, case, THICK_LUMEN))
+        if self.robin == "inertia":
+            problems += [f"loads.{end} prescribes a flow rate, which {self.name} with robin = 'inertia' (the paper's "
+                         f"scheme) does not conserve: {INERTIA_LEAK}; remove coupler.robin (the default "
+                         "'impedance' conserves it), or choose 'monolithic'"
+                         for end in ENDS if getattr(case.loads, end).constraint]
+        return problems
 
     def initial_state(self, setup) -> State:
         """The setup's state at t = 0; with ``[initial] pressure`` the fluid's force on the thin layer at rest
@@ -99,7 +137,7 @@ class KinematicSplitting(Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state, LUMEN),
-                **setup.fluid.energy(state.fluid, state.eta)}
+                **setup.fluid.energy(state.fluid, fluid_eta(state))}
 
     def traction(self, state: State, dt: float | None = None) -> np.ndarray:
         """τ̃: the fluid's force on the thin layer extrapolated from the last steps (0 at the start).
@@ -126,14 +164,22 @@ class KinematicSplitting(Coupler):
                            fluid_line=LUMEN)
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
-        robins: dict[float, object] = {}  # per Δt the same object every step: its slots are looked up once
+        # per Δt the Robin matrix, the same object every step (its slots are looked up once), and with the
+        # impedance the wall's response to a load on Γ
+        operators: dict[float, tuple] = {}
+
+        def operator(S, dt: float) -> tuple:
+            if dt not in operators:
+                operators.clear()
+                if self.robin == "inertia":
+                    operators[dt] = ((S.inertia / dt) * lumen_mass(setup), None)
+                else:
+                    operators[dt] = interface_impedance(a1, P, R, dt)
+            return operators[dt]
 
         def advance(state: State, w: Window) -> tuple[State, StepReport]:
             S, dt = w.scheme, w.dt
-            if dt not in robins:
-                robins.clear()
-                robins[dt] = (S.inertia / dt) * lumen_mass(setup)
-            robin = robins[dt]
+            robin, response = operator(S, dt)
             loads = window_loads(setup, S, w.t0, w.t1)
             tau = self.beta * self.traction(state, dt if adaptive else None)
             # A1: the structure, fluid frozen (its force only through β τ̃)
@@ -141,27 +187,56 @@ class KinematicSplitting(Coupler):
             if self.beta:
                 forces["splitting"] = P @ tau
             a = a1.step(state, forces, dt)
-            eta_new = R @ a.wall.d
-            # A2: the fluid on the domain A1 left, the thin layer's inertia as the Robin term
-            # (α₀/β₀)M/Δt (v̄ − V̄_Γ), from A1's test-level velocity V̄_Γ: the thin layer's new level
-            # (v̄ − β₁vⁿ)/β₀ then starts from vⁿ like the fluid's trace, so u^{n+1} = v^{n+1} on Γ
+            eta_a1 = R @ a.wall.d
+            # A2: the fluid on the domain A1 left, with the Robin term R(v̄ − V̄_Γ) from A1's test-level velocity
+            # V̄_Γ: under the thin layer's inertia its new level (v̄ − β₁vⁿ)/β₀ then starts from vⁿ like the
+            # fluid's trace, so u^{n+1} = v^{n+1} on Γ
             v_mean_a1 = R @ a.mean
             interface = Interface(robin, robin @ v_mean_a1 - tau)
-            domain = Domain(S.geometry([eta_new, state.eta]), v_mean_a1)
+            eta_old = fluid_eta(state)  # where the fluid's last domain ended (the wall's ηⁿ but under the impedance)
+            velocity = v_mean_a1 if response is None else (eta_a1 - eta_old) / dt
+            domain = Domain(S.geometry([eta_a1, eta_old]), velocity)
             history = [x.fluid for x in state.history(S.old_levels)]
-            sol, f = fluid.step(history, domain, S, dt, (w.t0, w.t1), interface,
-                                state.eta, eta_new)
+            system = fluid.system(history, domain, S, dt, (w.t0, w.t1), interface)
+            sol = fluid.solve(system)
             v_new = fluid.wall_velocity(sol.state)
             v_bar = S.average([v_new, state.v])  # ū on Γ, the thin layer's test-level velocity
-            traction = robin @ v_bar - interface.rhs  # the fluid's force on the thin layer over the step
-            report = self.report(setup, state, a, f, masses, v_new, v_bar, tau, dt)
+            traction = robin @ v_bar - interface.rhs  # the fluid's force on the wall over the step
+            f = fluid.identity(system, sol, eta_old, eta_a1)
             extra = {"traction": traction}
-            if adaptive:
-                extra.update(self.estimate(state, w, a.wall.d, P, R, v_mean_a1 - v_bar))
-            return state.then(S.old_levels, n=w.n + 1, t=w.t1, wall=a.wall, fluid=sol.state, v=v_new, eta=eta_new,
-                              extra=extra), report
+            if response is None:
+                wall_new = a.wall
+                report = self.report(setup, state, a, f, masses, v_new, v_bar, tau, dt)
+                if adaptive:
+                    extra.update(self.estimate(state, w, a.wall.d, P, R, v_mean_a1 - v_bar))
+            else:
+                # A3: the wall's step again under the fluid's force: linear in it, one product with A⁻¹P
+                forces = {"external": forces["external"], "fluid": P @ traction}
+                wall_step = a1.finish(state.history(S.levels - 1), a.mean + response @ (traction - tau), forces, dt)
+                wall_new = wall_step.wall
+                report = self.impedance_report(wall_step, f)
+                # the fluid's next step starts on the domain this one ended on, not on A3's wall: its kinetic
+                # energy is measured on one sequence of domains (theory §6, "The fluid's own domains")
+                extra[FLUID_ETA] = eta_a1
+            return state.then(S.old_levels, n=w.n + 1, t=w.t1, wall=wall_new, fluid=sol.state, v=v_new,
+                              eta=R @ wall_new.d, extra=extra), report
 
         return march(setup, self.scheme, state, advance)
+
+    @staticmethod
+    def impedance_report(wall_step, f) -> StepReport:
+        """The step's ledger under the impedance: the wall's identity (A3) and the fluid's (A2).
+
+        The fluid's force does work Δt τ·V̄_Γ on the wall and Δt τ·v̄ on the
+        fluid's side; V̄_Γ = v̄, so the two leave the ledger together, as in a
+        monolithic step (what is left of them is the residual's).
+        """
+        stored_f, work_f, dissipation_f = fluid_groups(f)
+        work = {k: w for k, w in wall_step.work.items() if k != "work.fluid"}
+        return StepReport({**wall_step.stored, **stored_f}, {**work, **work_f},
+                          {**wall_step.dissipation, **dissipation_f},
+                          {"energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),
+                           **fluid_columns(f)})
 
     @staticmethod
     def estimate(state: State, w: Window, d_new: np.ndarray, P, R, rate: np.ndarray) -> dict[str, np.ndarray]:
@@ -225,13 +300,37 @@ class KinematicSplitting(Coupler):
         })
 
 
+def interface_impedance(step: StructureStep, P, R, dt: float) -> tuple[sp.csr_matrix, np.ndarray]:
+    """(S_Γ, A⁻¹P): the wall step's impedance on the lumen line Γ and the step's response to a load there.
+
+    A load τ on Γ (line numbering) changes the wall's V̄ by A⁻¹Pτ and its
+    lumen velocity V̄_Γ by G τ, G = R A⁻¹ P (one back-substitution per line
+    DOF, once per Δt).  S_Γ = G⁻¹ on the line DOFs the wall leaves free:
+    the force the wall answers a change of V̄_Γ with, inertia, damping and
+    stiffness of every layer behind Γ together (theory §6).
+    """
+    response = step.response(P, dt)
+    G = R @ response
+    free = np.flatnonzero(np.diag(G) > 0.0)
+    impedance = np.zeros_like(G)
+    impedance[np.ix_(free, free)] = np.linalg.inv(G[np.ix_(free, free)])
+    return sp.csr_matrix(impedance), response
+
+
 @hookimpl
 def multilayer_couplers():
     return [CouplerPlugin(
         name="kinematic-splitting", factory=KinematicSplitting,
         params=(scheme_param(SCHEMES),
-                Param("beta", "β", default=0.0, ge=0.0, le=1.0,
-                      doc="share of the fluid's last force on the thin layer given to the structure step"),
+                Param("beta", "β", default=None, ge=0.0, le=1.0,
+                      doc="share of the fluid's last force on the wall given to the structure step A1 "
+                          "(default 1 under robin = 'impedance', where A1 predicts the fluid's domain; "
+                          "0 under 'inertia', the paper's scheme)"),
                 Param("extrapolation", type=int, default=1, choices=None, ge=1, le=2,
-                      doc="order of the extrapolation of that force: 1 (last step) or 2 (linear)")),
+                      doc="order of the extrapolation of that force: 1 (last step) or 2 (linear)"),
+                Param("robin", type=str, default="impedance", choices=ROBINS,
+                      doc="the fluid step's Robin operator on Γ: 'impedance' (the default), the wall step's own "
+                          "response condensed on Γ, with the wall's step then completed under the fluid's force "
+                          "(v̄ = V̄_Γ: the lumen's volume follows the flow); 'inertia', the thin layer's mass "
+                          "ρ₁h/Δt alone (the paper's scheme)")),
         doc="Kinematically coupled scheme: structure step, then fluid step with a Robin term (β, Crank–Nicolson).")]

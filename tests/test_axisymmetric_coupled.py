@@ -10,7 +10,7 @@ over these 14 runs and the 7 coarse runs of the bundled composite tube.
 import numpy as np
 import pytest
 from runs import assert_resume_is_bit_identical, run_cli
-from test_coupled import COARSE, LEDGER, SECOND_ORDER, _eta_series, _orders
+from test_coupled import COARSE, LEDGER, SECOND_ORDER, _eta_series, _orders, volume_margin
 
 TUBE = 'geometry.kind="axisymmetric"'
 COMPOSITE_TUBE = "pulse-koiter-thick-axisymmetric"
@@ -23,7 +23,8 @@ def columns(rows):
 @pytest.mark.parametrize("coupler", LEDGER)
 @pytest.mark.parametrize("case", ["pulse-koiter", "pulse-membrane"])
 def test_thin_walled_tube_ledger_closes_every_step(case, coupler, tmp_path):
-    code, summary, rows = run_cli(case, tmp_path / case, TUBE, *COARSE, f"coupler={LEDGER[coupler]}")
+    code, summary, rows = run_cli(case, tmp_path / case, TUBE, *COARSE, f"coupler={LEDGER[coupler]}",
+                                  *volume_margin(coupler))
     s = columns(rows)
     assert code == 0 and summary["status"] == "ok" and len(s["t"]) == 20
     assert np.all(s["energy.relative_residual"] <= 1e-9)

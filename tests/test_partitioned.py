@@ -47,7 +47,9 @@ def test_implicit_dirichlet_neumann_converges_to_the_monolithic_step(tmp_path, s
 def test_explicit_dirichlet_neumann_is_stable_for_a_heavy_wall_and_fails_cleanly_for_a_light_one(tmp_path):
     """Measured on this 8 × 2 channel: stable at ρ₁h/(ρ_f R) = 10 (energy 2.8e-8 below the bound);
     at 1 its energy outgrows the work put in by a factor 1600 in 20 steps, at 0.1 the wall blows out."""
-    code, summary, s = run(tmp_path / "heavy", '"dirichlet-neumann-explicit"', None, f"layers[0].density={HEAVY}")
+    # the fluid takes the wall's old velocity, the wall moves at its new one: the volume lags a step (theory §7)
+    code, summary, s = run(tmp_path / "heavy", '"dirichlet-neumann-explicit"', None, f"layers[0].density={HEAVY}",
+                           "solver.volume_margin=2")
     assert code == 0 and summary["steps"] == 20
     assert np.all(s["iterations"] == 1) and np.all(s["energy.relative_residual"] <= 1e-9)
     # the energy it creates at the interface is what makes it unstable: nonzero even when stable

@@ -18,6 +18,7 @@ def prepare(case: Case, registry: Registry) -> tuple[Setup, Coupler]:
     t0 = time.perf_counter()
     coupler = build_model(registry, "coupler", case.coupler)
     built = time.perf_counter() - t0
-    setup = Setup.build(case, registry, coupler.fluid_wall(case), coupler.radial_lines(case))
+    setup = Setup.build(case, registry, coupler.fluid_wall(case), coupler.radial_lines(case),
+                        coupler.fluid_interface_block(case))
     setup.timings["assembly"] += built
     return setup, coupler

@@ -111,6 +111,11 @@ class Coupler(ABC):
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""
         return "coupled"
 
+    def fluid_interface_block(self, case: Case) -> bool:
+        """True when this coupler's interface terms couple every two DOFs of the fluid's wall line (a wall step
+        condensed on Γ), so that the fluid's sparsity pattern holds that whole block."""
+        return False
+
     def radial_lines(self, case: Case) -> tuple[int, ...]:
         """Interface lines whose axial displacement d_z this coupler holds at zero.
 

@@ -23,6 +23,15 @@ LUMEN_CONDITIONS = ("no-slip", "radial")
 #: the ``State.extra`` entries of the lumen's axial displacement and velocity under no-slip (line vectors)
 AXIAL = ("eta_z", "v_z")
 
+#: the ``State.extra`` entry of η where the fluid's last domain ended, when a coupler keeps it apart from the wall's
+FLUID_ETA = "fluid.eta"
+
+
+def fluid_eta(state) -> np.ndarray:
+    """η of the domain the fluid's last step ended on: the fluid's own sequence of domains (``FLUID_ETA``), the
+    wall's η where a coupler keeps none."""
+    return state.extra.get(FLUID_ETA, state.eta)
+
 
 def lumen_param():
     """The ``lumen`` parameter of a coupler that takes a fluid directly on a thick band."""

@@ -25,6 +25,7 @@ from collections.abc import Mapping, Sequence
 
 import attrs
 import numpy as np
+import scipy.sparse as sp
 
 from multilayer.numerics.linsolve import SolverStats, factorize
 from multilayer.numerics.timescheme import TimeScheme
@@ -106,13 +107,29 @@ class StructureStep:
         """
         st, dt = self.stack, self.dt if dt is None else dt
         states = state.history(self.scheme.levels - 1)
+        mean = np.zeros(st.space.ndofs)
+        mean[st.free] = self._factors(dt).solve(self.rhs(states, forces, dt)[st.free])
+        return self.finish(states, mean, forces, dt)
+
+    def response(self, loads: sp.spmatrix, dt: float | None = None) -> np.ndarray:
+        """The change of V̄ that each column of ``loads`` (wall numbering) makes as a force F̄ of a step of Δt.
+
+        The step is linear in its forces, so a load F̄ + ΔF̄ moves V̄ by
+        A⁻¹ΔF̄ with A = :meth:`matrix` on the free DOFs: one back-substitution
+        per column of the factors :meth:`step` uses (a dense wall × column array).
+        """
+        st, dt = self.stack, self.dt if dt is None else dt
+        out = np.zeros((st.space.ndofs, loads.shape[1]))
+        out[st.free] = self._factors(dt).solve(loads.tocsr()[st.free].toarray())
+        return out
+
+    def _factors(self, dt: float):
+        """The factorized matrix of Δt = ``dt``: factorized again when Δt changes."""
         if self._solver is None or self._solver_dt != dt:
-            f = st.free
+            f = self.stack.free
             self._solver = factorize(self.matrix(dt).tocsr()[f][:, f], self._stats, self._backend)
             self._solver_dt = dt
-        mean = np.zeros(st.space.ndofs)
-        mean[st.free] = self._solver.solve(self.rhs(states, forces, dt)[st.free])
-        return self.finish(states, mean, forces, dt)
+        return self._solver
 
     def finish(self, states: Sequence[State], mean: np.ndarray, forces: Mapping[str, np.ndarray],
                dt: float | None = None) -> WallStep:

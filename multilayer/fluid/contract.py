@@ -35,7 +35,8 @@ class FluidSetup:
     the condition of each open end (``inlet``, ``outlet``); an end left out
     is traction-free.  ``line`` is the interface line's space when the caller
     already has it (the wall's lumen line); ``reuse`` when a changing matrix
-    is refactorized.
+    is refactorized; ``interface_block`` when the coupler's interface
+    matrix fills the whole line × line block (a wall's step condensed on Γ).
     """
 
     geometry: Geometry
@@ -50,6 +51,9 @@ class FluidSetup:
     reuse: Reuse = Reuse()
     line: LineSpace | None = None
     ends: Mapping[str, BoundaryCondition] = attrs.field(factory=dict)
+    interface_block: bool = False
+    #: the interface line's DOFs the wall holds at rest (its essential DOFs on the lumen): u_r = 0 there
+    held: np.ndarray = attrs.field(factory=lambda: np.zeros(0, dtype=np.int64), eq=False)
 
     def __attrs_post_init__(self):
         unknown = set(self.ends) - set(ENDS)
@@ -85,8 +89,10 @@ class Domain:
 class Interface:
     """Terms a coupler adds on the fluid's wall u_r rows, in line numbering: R v̄ − r.
 
-    In the kinematically coupled scheme R = (α₀/β₀) M/Δt with M = ρ₁h∫vψ the
-    thin layer's mass (the Robin term) and r the old thin-layer inertia.
+    In the kinematically coupled scheme R is the wall step condensed on the
+    line (its impedance, a dense block: :attr:`FluidSetup.interface_block`)
+    or, in the paper's form, (α₀/β₀) M/Δt with M = ρ₁h∫vψ the thin layer's
+    mass; r carries what the wall's step gives without the fluid.
     """
 
     matrix: sp.spmatrix

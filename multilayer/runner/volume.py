@@ -177,7 +177,8 @@ class VolumeLedger:
                 f"volume not conserved at t = {t:.6g} s: the lumen's volume and the flow through its ends disagree "
                 f"by {self.drift:.6g} after {self.moved:.6g} moved ({self.relative_drift:.3g} of it; "
                 f"[solver] volume_margin = {self.margin:g}): the coupling loses fluid through the wall here "
-                "(docs/theory.md, 'Volume'); a smaller Δt, or a monolithic coupler")
+                "(docs/theory.md, 'Volume'); a smaller Δt, or a coupler whose wall moves with the fluid "
+                "('monolithic', or 'kinematic-splitting' with its default robin = 'impedance')")
         return None
 
     def summary(self) -> dict[str, float]:

@@ -79,13 +79,14 @@ class Setup:
 
     @classmethod
     def build(cls, case: Case, registry: Registry, wall_mode: str = "coupled",
-              radial_lines: tuple[int, ...] = ()) -> Setup:
+              radial_lines: tuple[int, ...] = (), interface_block: bool = False) -> Setup:
         """Build the models, the wall and the fluid's discretization for ``wall_mode``.
 
         ``wall_mode`` is how the fluid sees the wall: ``coupled``, ``rigid`` or
         ``prescribed`` (what the case's coupler asks, :meth:`Coupler.fluid_wall`);
         ``radial_lines`` the interface lines whose d_z it holds at zero
-        (:meth:`Coupler.radial_lines`).  A fluid on a thick first layer pins
+        (:meth:`Coupler.radial_lines`); ``interface_block`` whether its interface terms fill the line × line
+        block of the fluid's matrix (:meth:`Coupler.fluid_interface_block`).  A fluid on a thick first layer pins
         the lumen line's ends in both components (the domain keeps its length).
         """
         t0 = time.perf_counter()
@@ -101,8 +102,12 @@ class Setup:
             stack = Stack.assemble(wall, radial_lines, pinned)
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
+            # the lumen's DOFs the wall holds at rest (a band whose inner face slides): the fluid's u_r is 0 there
+            held = (np.flatnonzero(np.isin(wall.line_dofs(LUMEN), stack.fixed)) if stack is not None
+                    else np.zeros(0, dtype=np.int64))
             fluid.setup(FluidSetup(geometry, g.length, g.radius, m.nz, m.nr, m.order, m.grading, wall_mode,
-                                   case.solver, case.reuse, line, {end: getattr(case.loads, end) for end in ENDS}))
+                                   case.solver, case.reuse, line, {end: getattr(case.loads, end) for end in ENDS},
+                                   interface_block, held))
         setup = cls(case=case, registry=registry, geometry=geometry, layers=layers, fluid=fluid, wall=wall,
                     stack=stack)
         setup.timings["assembly"] += time.perf_counter() - t0

@@ -83,7 +83,7 @@ class ChannelFluid(Fluid):
         channel = Channel.build(spec.geometry, spec.length, spec.radius, spec.nz, spec.nr, spec.order, spec.grading,
                                 spec.line)
         self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
-                                   spec.reuse, spec.ends)
+                                   spec.reuse, spec.ends, spec.interface_block, spec.held)
         return self._discrete
 
     @property

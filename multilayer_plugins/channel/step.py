@@ -152,11 +152,19 @@ class FluidStep:
         When a changing matrix is refactorized (:class:`multilayer.numerics.linsolve.Reuse`).
     ends : mapping
         The condition of each open end (``inlet``, ``outlet``); a missing end is traction-free.
+    interface_block : bool
+        True when the coupler's interface matrix R couples every two DOFs of
+        the wall line (a wall step condensed on Γ): the pattern then holds the
+        whole line × line block, not only the entries neighbours share.
+    held : array of int
+        The wall line's DOFs the wall holds at rest (a band whose inner face
+        slides radially fixed): the wall's u_r is 0 there, as at the ends.
     """
 
     def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
                  wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse(),
-                 ends: Mapping[str, BoundaryCondition] | None = None):
+                 ends: Mapping[str, BoundaryCondition] | None = None, interface_block: bool = False,
+                 held: np.ndarray | None = None):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
         self.channel = channel
@@ -181,14 +189,20 @@ class FluidStep:
             raise ValueError(f"a flow rate at both ends of a fluid on a {wall} wall fixes its volume balance twice "
                              f"and leaves the level of the pressure free: prescribe a pressure at one end")
         n = self.ndofs
-        self.pattern = Pattern((n, n), [uu, pu, pu[::-1], *self.ends.entries()])
+        #: the velocity DOF of each line DOF: where the wall's u_r sits
+        self.interface_dofs = prolongation_dofs(channel.prolongation)
+        block = []
+        if interface_block:
+            if wall != "coupled":
+                raise ValueError(f"a dense interface block needs the coupled wall mode, not {wall!r}")
+            rows, cols = np.meshgrid(self.interface_dofs, self.interface_dofs, indexing="ij")
+            block.append((rows.ravel(), cols.ravel()))
+        self.pattern = Pattern((n, n), [uu, pu, pu[::-1], *self.ends.entries(), *block])
         self.ends.place(self.pattern)
         # the data array of a step: velocity block, divergence rows, and their negated transpose
         self._fill = self.pattern.filler([self.pattern.slots(*uu), self.pattern.slots(*pu),
                                           self.pattern.slots(*pu[::-1])], scales=[1.0, 1.0, -1.0])
         self._extension: AxialExtension | None = None  # built at the first axially moving domain
-        #: the velocity DOF of each line DOF: where the wall's u_r sits
-        self.interface_dofs = prolongation_dofs(channel.prolongation)
         #: the velocity DOF of the wall's u_z at each line DOF (the same node's other component)
         comp_z, comp_r = channel.velocity.split_indices()
         self.interface_z_dofs = comp_z[np.searchsorted(comp_r, self.interface_dofs)]
@@ -196,6 +210,8 @@ class FluidStep:
                  self.interface_z_dofs[list(channel.ends)] if wall == "no-slip" else channel.wall_z]
         if wall in ("rigid", "prescribed"):
             fixed.append(channel.wall_r)
+        elif held is not None:
+            fixed.append(self.interface_dofs[np.asarray(held, dtype=np.int64)])
         self.fixed = np.unique(np.concatenate(fixed))
         self.free = np.setdiff1d(np.arange(n), self.fixed)
         self._block_ff = self.pattern.block(self.free, self.free)
