@@ -15,7 +15,8 @@ from multilayer.case.casefile import load_case
 from multilayer.fluid.contract import Domain, Interface
 from multilayer.results.reading import read_run
 from multilayer.runner.loop import run_case
-from multilayer_plugins.channel import NavierStokes
+from multilayer_plugins.channel import NavierStokes, forms
+from multilayer_plugins.channel.end_convection import end_convection, end_kinetic_flux
 
 RHO = 1.06
 
@@ -74,6 +75,33 @@ def test_the_matrix_is_the_ledgers_quadrature():
     assert system.dt * float(ubar @ K @ ubar) == pytest.approx(sum(quadrature.values()), rel=1e-12)
     # and the matrix is symmetric: the term adds no skew part to the step
     assert abs(K - K.T).max() <= 1e-14 * abs(K).max()
+
+
+def test_the_facet_tables_are_the_scikit_fem_forms():
+    """The step's contraction of the precomputed facet tables against the forms assembled by scikit-fem."""
+    fluid, step, system, eta_old, eta_new = step_with_inflow(ends="static-pressure", backflow=1.3)
+    convection, nu = step.ends.convection, step.channel.nu
+    rng = np.random.default_rng(5)
+    a, ubar = rng.standard_normal(nu), rng.standard_normal(nu)
+    stretches = {"inlet": 1.02, "outlet": 0.97}
+    data = np.zeros(step.pattern.nnz)
+    convection.add_matrix(data, a, stretches)
+    ours = step.pattern.matrix(data)[:nu, :nu]
+    theirs, columns = 0.0, {}
+    for end, basis in {"inlet": step.channel.inlet, "outlet": step.channel.outlet}.items():
+        flux = np.asarray(forms.dot(basis.interpolate(a), basis.normals))
+        kappa = convection.kappa(flux)
+        assert np.allclose(flux, convection.normal_velocity(end, a), rtol=0, atol=1e-13 * np.abs(flux).max())
+        theirs = theirs + 0.5 * RHO * end_convection.assemble(basis, J=stretches[end], kappa=kappa)
+        u = basis.interpolate(ubar)
+        kinetic = 0.5 * RHO * 1e-3 * stretches[end]
+        columns[f"dissipation.{end}.convection"] = kinetic * end_kinetic_flux.assemble(basis, u=u, J=1.0, kappa=flux)
+        columns[f"dissipation.{end}.backflow"] = 1.3 * kinetic * end_kinetic_flux.assemble(
+            basis, u=u, J=1.0, kappa=-np.minimum(flux, 0.0))
+    theirs = theirs[:nu, :nu]
+    assert abs(ours - theirs).max() <= 1e-13 * abs(theirs).max()
+    ledger = convection.ledger(ubar, a, stretches, 1e-3)
+    assert ledger == pytest.approx(columns, rel=1e-12)
 
 
 def test_total_pressure_ends_have_no_term():
