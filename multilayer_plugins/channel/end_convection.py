@@ -76,7 +76,7 @@ class _Facets:
         #: the velocity DOF of each local function on each facet (functions × facets)
         self.dofs = np.asarray(basis.element_dofs)
         #: the functions' values at the points: (functions, component, facet, point)
-        self.values = np.array([np.asarray(basis.basis[i][0].value) for i in range(basis.Nbfun)])
+        self.values = np.array([np.asarray(basis.basis[i][0]) for i in range(basis.Nbfun)])
         self.dx = np.asarray(basis.dx)
         #: φ_i·n at the points: (functions, facet, point)
         self.normal = np.einsum("icfq,cfq->ifq", self.values, np.asarray(basis.normals))
