@@ -11,6 +11,7 @@ from __future__ import annotations
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import FluidPlugin
 from multilayer_plugins.channel import PARAMS, NavierStokes
+from multilayer_plugins.channel.model import CONVECTION_PARAMS
 
 
 @hookimpl
@@ -20,7 +21,7 @@ def multilayer_fluids() -> list[FluidPlugin]:
         FluidPlugin(
             name="navier-stokes",
             factory=NavierStokes,
-            params=PARAMS,
+            params=PARAMS + CONVECTION_PARAMS,
             doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection.",
         )
     ]

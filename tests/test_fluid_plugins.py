@@ -10,11 +10,13 @@ from multilayer.plugin.registry import Registry
 from multilayer_plugins.channel import ChannelFluid, NavierStokes, Stokes
 
 
-@pytest.mark.parametrize("name, cls", [("navier-stokes", NavierStokes), ("stokes", Stokes)])
-def test_registered_with_density_and_viscosity(name, cls):
+@pytest.mark.parametrize("name, cls, ends", [("navier-stokes", NavierStokes, ["ends", "backflow"]),
+                                             ("stokes", Stokes, [])])
+def test_registered_with_density_and_viscosity(name, cls, ends):
     record = Registry.load().get("fluid", name).record
-    assert [p.name for p in record.params] == ["density", "viscosity"]
-    assert all(p.gt == 0.0 and p.required for p in record.params)
+    assert [p.name for p in record.params] == ["density", "viscosity", *ends]  # a Stokes fluid has no convection
+    assert all(p.gt == 0.0 and p.required for p in record.params[:2])
+    assert not any(p.required for p in record.params[2:])
     fluid = record.factory(density=1.06, viscosity=0.035)
     assert isinstance(fluid, cls) and isinstance(fluid, ChannelFluid) and isinstance(fluid, Fluid)
     assert (fluid.density, fluid.viscosity) == (1.06, 0.035)

@@ -11,6 +11,8 @@ module              what it holds
 ``channel``         reference mesh, P2/P1 or P1b/P1 spaces, DOF sets
 ``ale``             J, ∇^η, w at the quadrature points
 ``forms``           the A2 terms as scikit-fem forms
+``ends``            the open ends' loads, resistances and multipliers
+``end_convection``  static-pressure ends: the convective and backflow term
 ``step``            one step: system, solve, energy identity (:class:`FluidStep`)
 ``ledger``          quadratures of the energy identity
 ``probes``          point values, flow rate, snapshots

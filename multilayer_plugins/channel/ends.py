@@ -29,6 +29,12 @@ s_e·u^{n+1} = Q_e(tⁿ⁺¹), whatever the old levels carry (a step averaging
 Q over its window instead would leave Crank–Nicolson's undamped mode
 (−1)ⁿ in the level fluxes, and in λ a wrong first-order pressure).
 Testing with ū, the end hands the fluid −Δt λ_e Q̄_e, as a pressure λ_e would.
+
+Every end's P_e (or λ_e) is a total pressure p + ½ρ_f|u|² for the flow
+through it, by the skew-symmetric advection; a Navier–Stokes fluid with
+static-pressure ends carries instead the convective term of
+:mod:`multilayer_plugins.channel.end_convection` on both ends, whatever
+their conditions (its entries in the pattern from setup too).
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ from multilayer.fluid.contract import ENDS
 from multilayer.numerics.assembly.pattern import Pattern
 from multilayer_plugins.channel import forms
 from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.end_convection import EndConvection
 
 
 class TractionFree(BoundaryCondition):
@@ -66,9 +73,15 @@ class Ends:
         The reference channel (its ``inlet`` and ``outlet`` facet bases).
     conditions : mapping
         The condition of each end by name (``inlet``, ``outlet``); a missing end is traction-free.
+    density : float
+        ρ_f (g/cm³), for the static-pressure ends' convective term.
+    backflow : float or None
+        None: total-pressure ends (no convective term); β ≥ 0: static-pressure ends with the
+        backflow term of strength β (:mod:`multilayer_plugins.channel.end_convection`).
     """
 
-    def __init__(self, channel: Channel, conditions: Mapping[str, BoundaryCondition]):
+    def __init__(self, channel: Channel, conditions: Mapping[str, BoundaryCondition], density: float = 1.0,
+                 backflow: float | None = None):
         self.geometry = channel.geometry
         self.conditions = {end: conditions.get(end) or TractionFree() for end in ENDS}
         bases = {"inlet": channel.inlet, "outlet": channel.outlet}
@@ -82,6 +95,8 @@ class Ends:
                         if end in self.implicit or end in self.multipliers}
         self._slots: dict[str, np.ndarray] = {}
         self._border: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        #: the static-pressure ends' convective term (None: total-pressure ends)
+        self.convection = None if backflow is None else EndConvection(bases, density, backflow)
 
     def _rank_one(self, end: str) -> tuple[np.ndarray, np.ndarray]:
         """(rows, columns) of an implicit end's block (J ℓ)(J ℓ)ᵀ."""
@@ -98,7 +113,8 @@ class Ends:
         """(rows, columns) of the rank-one blocks of the implicit ends and of the constrained ends' borders
         (column and row of each λ_e), for the sparsity pattern."""
         return ([self._rank_one(end) for end in self.implicit]
-                + [part for end in self.multipliers for part in self._border_entries(end)])
+                + [part for end in self.multipliers for part in self._border_entries(end)]
+                + (list(self.convection.entries.values()) if self.convection is not None else []))
 
     def place(self, pattern: Pattern) -> None:
         """Look up the slots of the rank-one blocks and of the borders in the step's pattern (once)."""
@@ -107,6 +123,8 @@ class Ends:
         for end in self.multipliers:
             column, row = self._border_entries(end)
             self._border[end] = (pattern.slots(*column), pattern.slots(*row))
+        if self.convection is not None:
+            self.convection.place(pattern)
 
     def initial_state(self) -> dict[str, Any]:
         return {end: c.initial_state() for end, c in self.conditions.items()}
@@ -147,9 +165,11 @@ class Ends:
         for end, k in self.multipliers.items():
             rhs[k] = tractions[end].flux
 
-    def add_matrix(self, data: np.ndarray, tractions: Mapping[str, EndTraction], fields: Any) -> None:
+    def add_matrix(self, data: np.ndarray, tractions: Mapping[str, EndTraction], fields: Any,
+                   advecting: np.ndarray | None = None) -> None:
         """data += R_e (J_e ℓ_e)(J_e ℓ_e)ᵀ for each implicit end with a resistance, and the border
-        [s_e; s_eᵀ 0], s_e = −J_e ℓ_e, of each constrained end."""
+        [s_e; s_eᵀ 0], s_e = −J_e ℓ_e, of each constrained end; with static-pressure ends, their convective
+        term with the step's advecting velocity ``advecting`` (velocity DOFs; None for a Stokes fluid)."""
         for end in self.implicit:
             R = tractions[end].resistance
             if R:
@@ -159,6 +179,19 @@ class Ends:
             s = -self.stretch(fields, end) * self.loads[end][self.support[end]]
             data[column] += s
             data[row] += s
+        if self.convection is not None and advecting is not None:
+            self.convection.add_matrix(data, advecting, self.stretches(fields))
+
+    def stretches(self, fields: Any) -> dict[str, float]:
+        """J_e of each end (:meth:`stretch`)."""
+        return {end: self.stretch(fields, end) for end in ENDS}
+
+    def convection_ledger(self, ubar: np.ndarray, advecting: np.ndarray | None, fields: Any, dt: float
+                          ) -> dict[str, float]:
+        """The static-pressure ends' convective term tested with ū, by column (none for total-pressure ends)."""
+        if self.convection is None or advecting is None:
+            return {}
+        return self.convection.ledger(ubar, advecting, self.stretches(fields), dt)
 
     def resolve(self, tractions: Mapping[str, EndTraction], mean: np.ndarray) -> dict[str, EndTraction]:
         """The tractions as solved: a constrained end's pressure is its multiplier λ_e in ``mean``."""

@@ -21,6 +21,7 @@ from multilayer.plugin.records import Param
 from multilayer_plugins.channel import probes
 from multilayer_plugins.channel.ale import ALEFields, deformation, volume_element
 from multilayer_plugins.channel.channel import Channel
+from multilayer_plugins.channel.end_convection import END_PRESSURES
 from multilayer_plugins.channel.ledger import fluid_kinetic
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 
@@ -28,6 +29,15 @@ from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, 
 PARAMS = (
     Param("density", "ρ_f", "g/cm³", gt=0.0, doc="density of the fluid"),
     Param("viscosity", "μ", "P = g/(cm·s)", gt=0.0, doc="dynamic viscosity of the fluid"),
+)
+
+#: A Navier–Stokes fluid's further parameters: what its open ends' pressures mean (theory §10).
+CONVECTION_PARAMS = (
+    Param("ends", "", "", "static-pressure", type=str, choices=END_PRESSURES,
+          doc="what the open ends' pressure data prescribe: p, with a backflow term where the flow enters, "
+              "or p + ρ_f|u|²/2 (the seed's)"),
+    Param("backflow", "β", "1", None, ge=0.0,
+          doc="strength of the backflow term of static-pressure ends (default 1: no kinetic energy enters)"),
 )
 
 
@@ -67,6 +77,8 @@ class ChannelFluid(Fluid):
                 raise ValueError(f"fluid {name} must be > 0, got {value!r}")
         self.density = float(density)
         self.viscosity = float(viscosity)
+        #: the backflow term's β of static-pressure ends; None: total-pressure ends (theory §10)
+        self.backflow: float | None = None
         self._discrete: FluidStep | None = None
 
     def __repr__(self) -> str:
@@ -83,7 +95,7 @@ class ChannelFluid(Fluid):
         channel = Channel.build(spec.geometry, spec.length, spec.radius, spec.nz, spec.nr, spec.order, spec.grading,
                                 spec.line)
         self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
-                                   spec.reuse, spec.ends, spec.interface_block, spec.held)
+                                   spec.reuse, spec.ends, self.backflow, spec.interface_block, spec.held)
         return self._discrete
 
     @property
@@ -252,9 +264,34 @@ class ChannelFluid(Fluid):
 
 
 class NavierStokes(ChannelFluid):
-    """Incompressible Navier–Stokes (ALE, skew-symmetric advection)."""
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection).
+
+    ``ends`` says what the open ends' pressure data prescribe (theory §10, "Open ends under backflow"):
+    ``"static-pressure"`` p, with the backflow term of strength ``backflow`` = β (default 1) where the
+    flow enters (:mod:`multilayer_plugins.channel.end_convection`), or ``"total-pressure"``
+    p + ½ρ_f|u|² (the skew advection's natural condition, the seed's).
+    """
 
     advection = True
+
+    def __init__(self, density: float, viscosity: float, ends: str = "static-pressure",
+                 backflow: float | None = None):
+        super().__init__(density, viscosity)
+        if ends not in END_PRESSURES:
+            raise ValueError(f"fluid.ends must be one of {END_PRESSURES}, got {ends!r}")
+        if ends == "total-pressure" and backflow is not None:
+            raise ValueError(f"fluid.backflow = {backflow!r} is the backflow term of static-pressure ends: "
+                             f"set fluid.ends = \"static-pressure\" (total-pressure ends let no kinetic energy in)")
+        if backflow is not None and not backflow >= 0.0:
+            raise ValueError(f"fluid.backflow must be ≥ 0, got {backflow!r}")
+        self.end_pressure = ends
+        self.backflow = (1.0 if backflow is None else float(backflow)) if ends == "static-pressure" else None
+
+    def __repr__(self) -> str:
+        if self.backflow is None:
+            return super().__repr__()
+        return (f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r}, "
+                f"ends={self.end_pressure!r}, backflow={self.backflow!r})")
 
 
 class Stokes(ChannelFluid):

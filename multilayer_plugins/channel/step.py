@@ -8,11 +8,13 @@ on the wall, such that
 
     ρ_f/Δt mass_J(Σ α_k u^{n+1−k}, q) + ρ_f advection_skew(ū, q) + ρ_f moving_domain(ū, q)
   + 2μ viscous(ū, q) − ∫ J p̄ ∇^η·q + ∫ J π ∇^η·ū + [R v̄ − r]·ψ
-  + Σ_e R_e (∫_Γe J q·n)(∫_Γe J ū·n) = − Σ_e P_e ∫_Γe J q·n,
+  + Σ_e R_e (∫_Γe J q·n)(∫_Γe J ū·n) [+ Σ_e ½ρ_f ∫_Γe J κ(a·n) ū·q] = − Σ_e P_e ∫_Γe J q·n,
 
 every integral in the geometry's measure, where each open end e (inlet,
 outlet) has the mean pressure p̄_e = P_e + R_e Q̄_e its condition gives
-(:mod:`multilayer_plugins.channel.ends`; a prescribed pressure has R_e = 0).
+(:mod:`multilayer_plugins.channel.ends`; a prescribed pressure has R_e = 0),
+and the bracket is the convective term of static-pressure ends
+(:mod:`multilayer_plugins.channel.end_convection`).
 An end that prescribes its flux instead (a flow rate) has an unknown mean
 pressure λ_e, appended after (ū, p̄): its term λ_e ∫_Γe J q·n on the left
 and the row ∫_Γe J ū·n = Q̄_e (the test level of u^{n+1}'s prescribed
@@ -152,6 +154,10 @@ class FluidStep:
         When a changing matrix is refactorized (:class:`multilayer.numerics.linsolve.Reuse`).
     ends : mapping
         The condition of each open end (``inlet``, ``outlet``); a missing end is traction-free.
+    backflow : float or None
+        None: the ends' pressures are total pressures (the skew advection's natural condition); β ≥ 0:
+        static-pressure ends with the backflow term of strength β (Navier–Stokes only:
+        :mod:`multilayer_plugins.channel.end_convection`).
     interface_block : bool
         True when the coupler's interface matrix R couples every two DOFs of
         the wall line (a wall step condensed on Γ): the pattern then holds the
@@ -163,8 +169,8 @@ class FluidStep:
 
     def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
                  wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse(),
-                 ends: Mapping[str, BoundaryCondition] | None = None, interface_block: bool = False,
-                 held: np.ndarray | None = None):
+                 ends: Mapping[str, BoundaryCondition] | None = None, backflow: float | None = None,
+                 interface_block: bool = False, held: np.ndarray | None = None):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
         self.channel = channel
@@ -183,7 +189,7 @@ class FluidStep:
         self._uu = BatchedForm(ub)
         self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
-        self.ends = Ends(channel, ends or {})
+        self.ends = Ends(channel, ends or {}, density, backflow if advection else None)
         if wall in ("rigid", "prescribed") and len(self.ends.multipliers) == len(ENDS):
             # the incompressibility dilemma: a fluid whose wall it does not move has no volume to give
             raise ValueError(f"a flow rate at both ends of a fluid on a {wall} wall fixes its volume balance twice "
@@ -360,15 +366,16 @@ class FluidStep:
         if constant is not None:
             own = constant[0]
         else:
-            a = None
+            a = advecting = None
             if self.advection:
-                a = self._uu.trial_jets(scheme.extrapolate([s.u for s in hist]), values_only=True)
+                advecting = scheme.extrapolate([s.u for s in hist])
+                a = self._uu.trial_jets(advecting, values_only=True)
                 a[1] -= fields.wr
                 if fields.wz is not None:
                     a[0] -= fields.wz
             velocity, div = self._element_data(fields, mass_coefficient, a)
             own = self._fill(velocity, div, div)
-            self.ends.add_matrix(own, tractions, fields)
+            self.ends.add_matrix(own, tractions, fields, advecting)
         data = own
         if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
             if self._with_interface is None:
@@ -531,6 +538,8 @@ class FluidStep:
             end_power[end] = -dt * traction.mean(flux) * flux
             end_columns.update({f"end.{end}.Q": flux, f"end.{end}.p": traction.mean(flux),
                                 **condition.columns(end, new_ends.get(end))})
+        advecting = S.extrapolate([s.u for s in system.history]) if self.advection else None
+        convection = self.ends.convection_ledger(ubar, advecting, fields, dt)  # static-pressure ends only
         terms = {
             "kinetic.fluid": stored_new,
             "kinetic.fluid_before": stored_old,
@@ -539,6 +548,7 @@ class FluidStep:
             "dissipation.geometric.fluid": -geometric,
             **end_work,
             **end_dissipation,
+            **convection,
             **self.ends.energy(new_ends),
             **end_columns,
         }
@@ -549,7 +559,8 @@ class FluidStep:
         if system.interface is not None:
             vbar = ch.wall_trace(ubar)
             interface = dt * float(vbar @ (system.interface.matrix @ vbar - system.interface.rhs))
-        after = stored_new + terms["dissipation.numerical.fluid"] + terms["dissipation.viscous.fluid"] + interface
+        after = (stored_new + terms["dissipation.numerical.fluid"] + terms["dissipation.viscous.fluid"] + interface
+                 + sum(convection.values()))
         before = stored_old + end_power["inlet"] + end_power["outlet"] + terms.get("work.wall", 0.0) + geometric
         terms["interface.power"] = interface
         terms["a2.residual"] = after - before
