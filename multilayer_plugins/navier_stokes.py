@@ -2,7 +2,8 @@
 
 ALE on the fixed reference channel, skew-symmetric advection with the
 domain velocity of the structure step, dynamic pressure at inlet and
-outlet.  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
+outlet, SUPG and grad-div stabilization of convection (``stabilization``,
+``grad_div``).  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
 class with the advection terms off.
 """
 
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import FluidPlugin
-from multilayer_plugins.channel import PARAMS, NavierStokes
+from multilayer_plugins.channel import NAVIER_STOKES_PARAMS, NavierStokes
 
 
 @hookimpl
@@ -20,7 +21,8 @@ def multilayer_fluids() -> list[FluidPlugin]:
         FluidPlugin(
             name="navier-stokes",
             factory=NavierStokes,
-            params=PARAMS,
-            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection.",
+            params=NAVIER_STOKES_PARAMS,
+            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection, SUPG/grad-div "
+                "stabilized.",
         )
     ]

@@ -13,8 +13,10 @@ from multilayer_plugins.channel import ChannelFluid, NavierStokes, Stokes
 @pytest.mark.parametrize("name, cls", [("navier-stokes", NavierStokes), ("stokes", Stokes)])
 def test_registered_with_density_and_viscosity(name, cls):
     record = Registry.load().get("fluid", name).record
-    assert [p.name for p in record.params] == ["density", "viscosity"]
-    assert all(p.gt == 0.0 and p.required for p in record.params)
+    stabilization = ["stabilization", "grad_div"] if cls is NavierStokes else []
+    assert [p.name for p in record.params] == ["density", "viscosity", *stabilization]
+    assert all(p.gt == 0.0 and p.required for p in record.params[:2])
+    assert [p.default for p in record.params[2:]] == (["supg", 1.0] if stabilization else [])
     fluid = record.factory(density=1.06, viscosity=0.035)
     assert isinstance(fluid, cls) and isinstance(fluid, ChannelFluid) and isinstance(fluid, Fluid)
     assert (fluid.density, fluid.viscosity) == (1.06, 0.035)

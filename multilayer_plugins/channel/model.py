@@ -22,12 +22,22 @@ from multilayer_plugins.channel import probes
 from multilayer_plugins.channel.ale import ALEFields, deformation, volume_element
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ledger import fluid_kinetic
+from multilayer_plugins.channel.stabilization import KINDS, Stabilization
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 
 #: The parameters of every channel fluid, for its plugin record.
 PARAMS = (
     Param("density", "ρ_f", "g/cm³", gt=0.0, doc="density of the fluid"),
     Param("viscosity", "μ", "P = g/(cm·s)", gt=0.0, doc="dynamic viscosity of the fluid"),
+)
+
+#: The parameters of the Navier–Stokes fluid: PARAMS and its stabilization (theory §5, "Stabilization").
+NAVIER_STOKES_PARAMS = PARAMS + (
+    Param("stabilization", "", "", default="supg", type=str, choices=KINDS,
+          doc="residual-based stabilization of convection: 'supg' (SUPG on the momentum residual, with grad-div) "
+              "or 'none' (Galerkin)"),
+    Param("grad_div", "γ", "1", default=1.0, ge=0.0,
+          doc="scale γ of grad-div's cell viscosity τ_C = γ|a|h/2 under 'supg' (0: SUPG alone)"),
 )
 
 
@@ -83,8 +93,12 @@ class ChannelFluid(Fluid):
         channel = Channel.build(spec.geometry, spec.length, spec.radius, spec.nz, spec.nr, spec.order, spec.grading,
                                 spec.line)
         self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
-                                   spec.reuse, spec.ends)
+                                   spec.reuse, spec.ends, self.stabilization(channel))
         return self._discrete
+
+    def stabilization(self, channel: Channel) -> Stabilization | None:
+        """The residual-based stabilization of the step on ``channel``: none for the Galerkin fluid."""
+        return None
 
     @property
     def discrete(self) -> FluidStep:
@@ -252,9 +266,37 @@ class ChannelFluid(Fluid):
 
 
 class NavierStokes(ChannelFluid):
-    """Incompressible Navier–Stokes (ALE, skew-symmetric advection)."""
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection), SUPG and grad-div stabilized by default.
+
+    Parameters
+    ----------
+    density, viscosity : float
+        As :class:`ChannelFluid`.
+    stabilization : str
+        ``"supg"`` (default) or ``"none"`` (:mod:`multilayer_plugins.channel.stabilization`).
+    grad_div : float
+        γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default 1; 0: SUPG alone).
+    """
 
     advection = True
+
+    def __init__(self, density: float, viscosity: float, stabilization: str = "supg", grad_div: float = 1.0):
+        super().__init__(density, viscosity)
+        if stabilization not in KINDS:
+            raise ValueError(f"fluid stabilization must be one of {', '.join(KINDS)}, got {stabilization!r}")
+        if not grad_div >= 0.0:
+            raise ValueError(f"fluid grad_div must be ≥ 0, got {grad_div!r}")
+        self.kind = stabilization
+        self.grad_div = float(grad_div)
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r}, "
+                f"stabilization={self.kind!r}, grad_div={self.grad_div!r})")
+
+    def stabilization(self, channel: Channel) -> Stabilization | None:
+        if self.kind == "none":
+            return None
+        return Stabilization(channel, self.density, self.viscosity, self.grad_div)
 
 
 class Stokes(ChannelFluid):
