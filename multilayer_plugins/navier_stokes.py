@@ -2,8 +2,8 @@
 
 ALE on the fixed reference channel, skew-symmetric advection with the
 domain velocity of the structure step, dynamic pressure at inlet and
-outlet, SUPG and grad-div stabilization of convection (``stabilization``,
-``grad_div``).  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
+outlet, SUPG stabilization of convection (``stabilization``; grad-div with
+``grad_div`` > 0).  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
 class with the advection terms off.
 """
 
@@ -22,7 +22,7 @@ def multilayer_fluids() -> list[FluidPlugin]:
             name="navier-stokes",
             factory=NavierStokes,
             params=NAVIER_STOKES_PARAMS,
-            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection, SUPG/grad-div "
-                "stabilized.",
+            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection, SUPG-stabilized "
+                "(grad-div on request).",
         )
     ]

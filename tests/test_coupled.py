@@ -151,10 +151,10 @@ def _orders(case, ref, coupler, dts, tmp_path):
 def test_second_order_couplers_are_second_order(coupler, reference, tmp_path):
     """Koiter+thick and Koiter pulses, 20 × 4 cells, T = 0.004, Δt = 2e-4, 1e-4, 5e-5.
 
-    Measured (thick / thin wall), errors and orders, with the stabilized Navier–Stokes fluid (the default):
-    splitting-cn    0.231 0.107 0.0255 → 1.11 2.07 | 0.126 0.0332 0.0081 → 1.92 2.03
-    monolithic-cn   0.149 0.0361 0.0090 → 2.04 2.00 | 0.029 0.0081 0.0022 → 1.83 1.88
-    monolithic-bdf2 0.317 0.133 0.0370 → 1.25 1.84 | 0.050 0.0242 0.0069 → 1.05 1.82
+    Measured (thick / thin wall), errors and orders, the fluid SUPG-stabilized (the default):
+    splitting-cn    0.274 0.117 0.0273 → 1.22 2.10 | 0.128 0.0339 0.0083 → 1.92 2.04
+    monolithic-cn   0.161 0.0388 0.0097 → 2.05 2.00 | 0.031 0.0088 0.0024 → 1.79 1.89
+    monolithic-bdf2 0.341 0.143 0.0397 → 1.26 1.85 | 0.054 0.0258 0.0073 → 1.06 1.82
     (Δt = 2e-4 is 15 steps per pulse: pre-asymptotic for the thick wall.)
     """
     case, ref = reference
@@ -167,9 +167,9 @@ def test_second_order_couplers_are_second_order(coupler, reference, tmp_path):
 def test_first_order_couplers_are_first_order(coupler, low, reference, tmp_path):
     """The same, Δt = 1e-4, 5e-5, 2.5e-5.  Measured (thick / thin wall):
 
-    splitting       0.672 0.492 0.316 → 0.45 0.64 | 0.434 0.262 0.147 → 0.73 0.83
-    splitting-beta  0.333 0.214 0.115 → 0.64 0.89 | 0.056 0.040 0.024 → 0.48 0.74
-    monolithic-be   0.412 0.220 0.114 → 0.91 0.95 | 0.086 0.050 0.027 → 0.79 0.89
+    splitting       0.672 0.490 0.315 → 0.45 0.64 | 0.433 0.262 0.147 → 0.73 0.83
+    splitting-beta  0.359 0.229 0.124 → 0.64 0.89 | 0.062 0.046 0.027 → 0.42 0.74
+    monolithic-be   0.444 0.237 0.123 → 0.91 0.95 | 0.097 0.056 0.030 → 0.78 0.89
 
     First order with a large constant: the splitting approaches order 1 only
     below Δt ≈ 1e-5 (docs/accuracy.md has the full-resolution study).

@@ -34,9 +34,9 @@ PARAMS = (
 #: The parameters of the Navier–Stokes fluid: PARAMS and its stabilization (theory §5, "Stabilization").
 NAVIER_STOKES_PARAMS = PARAMS + (
     Param("stabilization", "", "", default="supg", type=str, choices=KINDS,
-          doc="residual-based stabilization of convection: 'supg' (SUPG on the momentum residual, with grad-div) "
+          doc="residual-based stabilization of convection: 'supg' (SUPG on the momentum residual, grad-div if grad_div > 0) "
               "or 'none' (Galerkin)"),
-    Param("grad_div", "γ", "1", default=1.0, ge=0.0,
+    Param("grad_div", "γ", "1", default=0.0, ge=0.0,
           doc="scale γ of grad-div's cell viscosity τ_C = γ|a|h/2 under 'supg' (0: SUPG alone)"),
 )
 
@@ -266,7 +266,7 @@ class ChannelFluid(Fluid):
 
 
 class NavierStokes(ChannelFluid):
-    """Incompressible Navier–Stokes (ALE, skew-symmetric advection), SUPG and grad-div stabilized by default.
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection), SUPG-stabilized by default (grad-div on request).
 
     Parameters
     ----------
@@ -275,12 +275,12 @@ class NavierStokes(ChannelFluid):
     stabilization : str
         ``"supg"`` (default) or ``"none"`` (:mod:`multilayer_plugins.channel.stabilization`).
     grad_div : float
-        γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default 1; 0: SUPG alone).
+        γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default 0: SUPG alone).
     """
 
     advection = True
 
-    def __init__(self, density: float, viscosity: float, stabilization: str = "supg", grad_div: float = 1.0):
+    def __init__(self, density: float, viscosity: float, stabilization: str = "supg", grad_div: float = 0.0):
         super().__init__(density, viscosity)
         if stabilization not in KINDS:
             raise ValueError(f"fluid stabilization must be one of {', '.join(KINDS)}, got {stabilization!r}")

@@ -1,10 +1,11 @@
-"""Residual-based stabilization of the Navier–Stokes step: SUPG on the momentum residual, and grad-div.
+"""Residual-based stabilization of the Navier–Stokes step: SUPG on the momentum residual, and grad-div on request.
 
 At a cell Péclet number |a| h / 2ν ≫ 1 (an artery's systole on a clinical
 mesh: |a| ~ 100 cm/s, h ~ 0.1 cm, ν = 0.033 cm²/s gives ~150) the Galerkin
 step's convection has no control of the streamwise gradients, and the
-velocity oscillates from node to node.  Two terms are added to the step of
-:mod:`multilayer_plugins.channel.step` (theory §5, "Stabilization"):
+velocity oscillates from node to node.  SUPG is added to the step of
+:mod:`multilayer_plugins.channel.step` (theory §5, "Stabilization of
+convection"), and grad-div when ``grad_div`` > 0:
 
     Σ_K ∫_K J τ_M ((a·∇^η) q) · R_M(ū, p̄)                   (SUPG)
   + Σ_K ∫_K J ρ_f τ_C (∇^η·ū)(∇^η·q)                        (grad-div)
@@ -18,8 +19,8 @@ level, the scheme's difference quotient included,
 carries it (h the scheme's old levels, on the right-hand side), a the
 step's advecting velocity (the extrapolated u minus the domain velocity w,
 as in the advection term), and ∇^η·ū the divergence with a tube's hoop
-term u_r/r.  Both terms vanish on a solution
-of the equations (R_M = 0, ∇·u = 0): the stabilized step is consistent, and
+term u_r/r.  Both terms vanish on a solution of the equations (R_M = 0,
+∇·u = 0): the stabilized step is consistent, and
 Poiseuille flow, which P2 holds exactly, stays exact.
 
 In a tube (radial power k = 1) the vector Laplacian has the cylindrical
@@ -36,25 +37,31 @@ method (Bazilevs et al. 2007), with the metric tensor G = 4 (∂ξ/∂x)ᵀ(∂�
 of the map from the unit reference triangle (so a·G a = (2|a|/h)² for a cell
 of size h along a):
 
-    τ_M = ((2/Δt)² + a·G a + C_I ν² G:G)^(−1/2),    τ_C = γ |a| h_a / 2,   h_a = 2|a| / (a·G a)^(1/2),
+    τ_M = ((2ϱ)² + a·G a + C_I ν² G:G)^(−1/2),    τ_C = γ |a| h_a / 2,   h_a = 2|a| / (a·G a)^(1/2),
 
-C_I = 36, ν = μ/ρ_f, h_a the cell's size along a, and γ the case file's
-``grad_div`` (1 by default, 0 turns grad-div off).  τ_M's (2/Δt)² keeps
-τ_M ≤ Δt/2: without it (τ_M ~ h/2|a| > Δt on a coarse mesh) the
-centreline velocity of the 10 × 2 tube of tests/test_fluid_stabilization.py
-reached −287 times the mean velocity — the SUPG part of the mass term,
-ρ_f τ_M/Δt ((a·∇)q)·ū, is not sign-definite (tested with ū it is a flux
-through the ends) and grows with τ_M/Δt.  So the
-stabilized step changes with Δt: a Δt-refinement at a fixed mesh tends to
-the Galerkin solution of that mesh.  τ_C is the convective scaling of
-grad-div (a cell viscosity |a|h/2 on the divergence): it vanishes with a,
-so at small Reynolds numbers the stabilized step departs from the Galerkin
-one in proportion to Re, as advection itself does, and it does not depend
-on Δt.  (The variational multiscale choice 1/(τ_M tr G) would do neither:
-at small Δt it is ~h²/(4Δt), hundreds of times ν at an artery's
-Δt = 1e-3 s whatever the flow, and it turned the couplers' second-order
-convergence in Δt into order ~0.3.)  Both parameters are evaluated at
-every quadrature point with the step's a, so the step stays linear.
+C_I = 36, ν = μ/ρ_f, ϱ = (α₀/β₀)/Δt the rate of the step's mass term (1/Δt
+for backward Euler, 1.5/Δt for BDF2, 2/Δt for Crank–Nicolson), h_a the
+cell's size along a, and γ the case file's ``grad_div`` (0 by default:
+grad-div off).  τ_M's (2ϱ)² keeps τ_M ϱ ≤ ½: SUPG's part of the mass
+term, ρ_f τ_M ϱ ((a·∇)q)·ū, is not sign-definite (tested with ū it is a
+flux through the ends), and with τ_M ~ h/2|a| > Δt (a coarse mesh, no time
+term) the centreline velocity of the 10 × 2 tube of
+tests/test_fluid_stabilization.py reached −287 times the mean velocity.  So
+the stabilized step changes with Δt: refined in Δt at a fixed mesh it tends
+to that mesh's Galerkin step.  τ_C is the convective scaling of grad-div (a
+cell viscosity |a|h/2 on the divergence): it vanishes with a, so at small
+Reynolds numbers the stabilized step departs from the Galerkin one in
+proportion to Re, as advection itself does, and it does not depend on Δt.
+(The variational multiscale choice 1/(τ_M tr G) would do neither: at small
+Δt it is ~h²/(4Δt), hundreds of times ν at an artery's Δt = 1e-3 s whatever
+the flow, and it turned the couplers' second-order convergence in Δt on the
+pulse cases into order ≤ 0.36.)  Grad-div is off by default: with
+``grad_div = 1`` the Crank–Nicolson kinematic splitting of
+cases/physiological-rcr.toml hands the fluid spurious energy at the start
+(SUPG's column −820 erg in the fifth step, the fluid's kinetic energy 664
+erg where the Galerkin step's is 255) and stops on the energy check,
+while SUPG alone and grad-div alone run it.  Both parameters are evaluated at every
+quadrature point with the step's a, so the step stays linear.
 
 The matrices are assembled here from the element jets (values, physical
 gradients, Laplacians of the local basis functions, chunk by chunk of
@@ -122,7 +129,7 @@ class Stabilization:
         γ ≥ 0, the scale of τ_C.
     """
 
-    def __init__(self, channel: Channel, density: float, viscosity: float, grad_div: float = 1.0):
+    def __init__(self, channel: Channel, density: float, viscosity: float, grad_div: float = 0.0):
         if not grad_div >= 0.0:
             raise ValueError(f"grad_div must be ≥ 0, got {grad_div!r}")
         self.channel, self.density, self.viscosity, self.grad_div = channel, density, viscosity, float(grad_div)
@@ -173,7 +180,7 @@ class Stabilization:
             kept = self._jets[1][key] = (xi, grad, lap, pgrad, hoop)
         return kept
 
-    def parameters(self, fields: ALEFields, a: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def parameters(self, fields: ALEFields, a: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
         """(τ_M, τ_C) at the quadrature points (elements, points) for the advecting velocity ``a`` (2, e, q): τ_M in
         s, τ_C in cm²/s (grad-div's coefficient is ρ_f τ_C)."""
         nu = self.viscosity / self.density
@@ -184,7 +191,7 @@ class Stabilization:
             ac = a[:, cut]
             aGa = sum(ac[d] * G[d, e] * ac[e] for d in range(2) for e in range(2))
             GG = sum(G[d, e] ** 2 for d in range(2) for e in range(2))
-            tau_m[cut] = (4.0 / dt**2 + aGa + C_INVERSE * nu**2 * GG) ** -0.5
+            tau_m[cut] = ((2.0 * rate) ** 2 + aGa + C_INVERSE * nu**2 * GG) ** -0.5
             speed2 = ac[0] ** 2 + ac[1] ** 2
             # τ_C = γ |a|²/√(a·Ga) = γ|a|h_a/2, and 0 where a = 0 (then a·Ga = 0 too)
             tau_c[cut] = self.grad_div * np.divide(speed2, np.sqrt(aGa), out=np.zeros_like(aGa), where=aGa > 0.0)
@@ -192,7 +199,7 @@ class Stabilization:
 
     def step(self, fields: ALEFields, a: np.ndarray, mass_coefficient: float, dt: float) -> Stabilized:
         """The terms of one step: the advecting velocity ``a`` (2, e, q), the step's mass coefficient (α₀/β₀) ρ_f/Δt."""
-        tau_m, tau_c = self.parameters(fields, a, dt)
+        tau_m, tau_c = self.parameters(fields, a, mass_coefficient / self.density)
         return Stabilized(self, fields, a, mass_coefficient, dt, tau_m, tau_c)
 
 
