@@ -1,8 +1,10 @@
 """``navier-stokes``: incompressible Navier–Stokes in the channel (theory §6, step A2).
 
 ALE on the fixed reference channel, skew-symmetric advection with the
-domain velocity of the structure step, dynamic pressure at inlet and
-outlet.  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
+domain velocity of the structure step, static-pressure ends with a
+backflow term (``ends``, ``backflow``; the seed's total pressure on
+request), SUPG stabilization of convection (``stabilization``; grad-div with
+``grad_div`` > 0).  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
 class with the advection terms off.
 """
 
@@ -10,8 +12,7 @@ from __future__ import annotations
 
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import FluidPlugin
-from multilayer_plugins.channel import PARAMS, NavierStokes
-from multilayer_plugins.channel.model import CONVECTION_PARAMS
+from multilayer_plugins.channel import NAVIER_STOKES_PARAMS, NavierStokes
 
 
 @hookimpl
@@ -21,7 +22,8 @@ def multilayer_fluids() -> list[FluidPlugin]:
         FluidPlugin(
             name="navier-stokes",
             factory=NavierStokes,
-            params=PARAMS + CONVECTION_PARAMS,
-            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection.",
+            params=NAVIER_STOKES_PARAMS,
+            doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection, SUPG-stabilized "
+                "(grad-div on request), static-pressure ends with a backflow term.",
         )
     ]

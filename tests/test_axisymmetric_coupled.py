@@ -10,7 +10,14 @@ over these 14 runs and the 7 coarse runs of the bundled composite tube.
 import numpy as np
 import pytest
 from runs import assert_resume_is_bit_identical, run_cli
-from test_coupled import COARSE, LEDGER, SECOND_ORDER, _eta_series, _orders, volume_margin
+from test_coupled import (
+    COARSE,
+    LEDGER,
+    SECOND_ORDER,
+    _eta_series,
+    _orders,
+    volume_margin,
+)
 
 TUBE = 'geometry.kind="axisymmetric"'
 COMPOSITE_TUBE = "pulse-koiter-thick-axisymmetric"

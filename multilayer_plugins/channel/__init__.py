@@ -10,6 +10,7 @@ module              what it holds
 ==================  ====================================================
 ``channel``         reference mesh, P2/P1 or P1b/P1 spaces, DOF sets
 ``ale``             J, ∇^η, w at the quadrature points
+``stabilization``   SUPG and grad-div of the Navier–Stokes step
 ``forms``           the A2 terms as scikit-fem forms
 ``ends``            the open ends' loads, resistances and multipliers
 ``end_convection``  static-pressure ends: the convective and backflow term
@@ -21,6 +22,7 @@ module              what it holds
 """
 
 from multilayer_plugins.channel.model import (
+    NAVIER_STOKES_PARAMS,
     PARAMS,
     ChannelFluid,
     NavierStokes,
@@ -30,6 +32,7 @@ from multilayer_plugins.channel.model import (
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 
 __all__ = [
+    "NAVIER_STOKES_PARAMS",
     "PARAMS",
     "ChannelFluid",
     "FluidState",

@@ -23,6 +23,7 @@ from multilayer_plugins.channel.ale import ALEFields, deformation, volume_elemen
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.end_convection import END_PRESSURES
 from multilayer_plugins.channel.ledger import fluid_kinetic
+from multilayer_plugins.channel.stabilization import KINDS, Stabilization
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 
 #: The parameters of every channel fluid, for its plugin record.
@@ -31,13 +32,19 @@ PARAMS = (
     Param("viscosity", "μ", "P = g/(cm·s)", gt=0.0, doc="dynamic viscosity of the fluid"),
 )
 
-#: A Navier–Stokes fluid's further parameters: what its open ends' pressures mean (theory §10).
-CONVECTION_PARAMS = (
+#: The parameters of the Navier–Stokes fluid: PARAMS, what its open ends' pressures mean (theory §10) and its
+#: stabilization of convection (theory §5, "Stabilization").
+NAVIER_STOKES_PARAMS = PARAMS + (
     Param("ends", "", "", "static-pressure", type=str, choices=END_PRESSURES,
           doc="what the open ends' pressure data prescribe: p, with a backflow term where the flow enters, "
               "or p + ρ_f|u|²/2 (the seed's)"),
     Param("backflow", "β", "1", None, ge=0.0,
           doc="strength of the backflow term of static-pressure ends (default 1: no kinetic energy enters)"),
+    Param("stabilization", "", "", default="supg", type=str, choices=KINDS,
+          doc="residual-based stabilization of convection: 'supg' (SUPG on the momentum residual, grad-div if grad_div > 0) "
+              "or 'none' (Galerkin)"),
+    Param("grad_div", "γ", "1", default=0.0, ge=0.0,
+          doc="scale γ of grad-div's cell viscosity τ_C = γ|a|h/2 under 'supg' (0: SUPG alone)"),
 )
 
 
@@ -95,8 +102,13 @@ class ChannelFluid(Fluid):
         channel = Channel.build(spec.geometry, spec.length, spec.radius, spec.nz, spec.nr, spec.order, spec.grading,
                                 spec.line)
         self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
-                                   spec.reuse, spec.ends, self.backflow, spec.interface_block, spec.held)
+                                   spec.reuse, spec.ends, self.backflow, spec.interface_block, spec.held,
+                                   self.stabilization(channel))
         return self._discrete
+
+    def stabilization(self, channel: Channel) -> Stabilization | None:
+        """The residual-based stabilization of the step on ``channel``: none for the Galerkin fluid."""
+        return None
 
     @property
     def discrete(self) -> FluidStep:
@@ -264,18 +276,29 @@ class ChannelFluid(Fluid):
 
 
 class NavierStokes(ChannelFluid):
-    """Incompressible Navier–Stokes (ALE, skew-symmetric advection).
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection), SUPG-stabilized by default (grad-div on request).
 
-    ``ends`` says what the open ends' pressure data prescribe (theory §10, "Open ends under backflow"):
-    ``"static-pressure"`` p, with the backflow term of strength ``backflow`` = β (default 1) where the
-    flow enters (:mod:`multilayer_plugins.channel.end_convection`), or ``"total-pressure"``
-    p + ½ρ_f|u|² (the skew advection's natural condition, the seed's).
+    Parameters
+    ----------
+    density, viscosity : float
+        As :class:`ChannelFluid`.
+    ends : str
+        What the open ends' pressure data prescribe (theory §10, "Open ends under backflow"):
+        ``"static-pressure"`` p, with the backflow term of strength ``backflow`` = β (default 1) where the
+        flow enters (:mod:`multilayer_plugins.channel.end_convection`), or ``"total-pressure"``
+        p + ½ρ_f|u|² (the skew advection's natural condition, the seed's).
+    backflow : float, optional
+        β ≥ 0 of static-pressure ends.
+    stabilization : str
+        ``"supg"`` (default) or ``"none"`` (:mod:`multilayer_plugins.channel.stabilization`).
+    grad_div : float
+        γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default 0: SUPG alone).
     """
 
     advection = True
 
     def __init__(self, density: float, viscosity: float, ends: str = "static-pressure",
-                 backflow: float | None = None):
+                 backflow: float | None = None, stabilization: str = "supg", grad_div: float = 0.0):
         super().__init__(density, viscosity)
         if ends not in END_PRESSURES:
             raise ValueError(f"fluid.ends must be one of {END_PRESSURES}, got {ends!r}")
@@ -284,14 +307,24 @@ class NavierStokes(ChannelFluid):
                              f"set fluid.ends = \"static-pressure\" (total-pressure ends let no kinetic energy in)")
         if backflow is not None and not backflow >= 0.0:
             raise ValueError(f"fluid.backflow must be ≥ 0, got {backflow!r}")
+        if stabilization not in KINDS:
+            raise ValueError(f"fluid stabilization must be one of {', '.join(KINDS)}, got {stabilization!r}")
+        if not grad_div >= 0.0:
+            raise ValueError(f"fluid grad_div must be ≥ 0, got {grad_div!r}")
         self.end_pressure = ends
         self.backflow = (1.0 if backflow is None else float(backflow)) if ends == "static-pressure" else None
+        self.kind = stabilization
+        self.grad_div = float(grad_div)
 
     def __repr__(self) -> str:
-        if self.backflow is None:
-            return super().__repr__()
-        return (f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r}, "
-                f"ends={self.end_pressure!r}, backflow={self.backflow!r})")
+        ends = "" if self.backflow is None else f", ends={self.end_pressure!r}, backflow={self.backflow!r}"
+        return (f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r}{ends}, "
+                f"stabilization={self.kind!r}, grad_div={self.grad_div!r})")
+
+    def stabilization(self, channel: Channel) -> Stabilization | None:
+        if self.kind == "none":
+            return None
+        return Stabilization(channel, self.density, self.viscosity, self.grad_div)
 
 
 class Stokes(ChannelFluid):

@@ -10,7 +10,9 @@ on the wall, such that
   + 2μ viscous(ū, q) − ∫ J p̄ ∇^η·q + ∫ J π ∇^η·ū + [R v̄ − r]·ψ
   + Σ_e R_e (∫_Γe J q·n)(∫_Γe J ū·n) [+ Σ_e ½ρ_f ∫_Γe J κ(a·n) ū·q] = − Σ_e P_e ∫_Γe J q·n,
 
-every integral in the geometry's measure, where each open end e (inlet,
+every integral in the geometry's measure (the ``navier-stokes`` fluid adds SUPG
+and grad-div to the left, and SUPG's old levels to the right:
+:mod:`multilayer_plugins.channel.stabilization`), where each open end e (inlet,
 outlet) has the mean pressure p̄_e = P_e + R_e Q̄_e its condition gives
 (:mod:`multilayer_plugins.channel.ends`; a prescribed pressure has R_e = 0),
 and the bracket is the convective term of static-pressure ends
@@ -72,6 +74,7 @@ from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.ends import Ends
 from multilayer_plugins.channel.extension import AxialExtension
 from multilayer_plugins.channel.ledger import Quadrature
+from multilayer_plugins.channel.stabilization import Stabilization, Stabilized
 
 WALL_MODES = ("coupled", "no-slip", "rigid", "prescribed")
 
@@ -125,6 +128,8 @@ class FluidSystem:
     #: what stands for this system's matrix in the solver (kept by ``attrs.evolve``: a prescribed wall
     #: velocity changes the right-hand side only, so the same factors serve)
     token: object = attrs.field(factory=object)
+    #: the step's residual-based stabilization (SUPG, grad-div), None when off or without advection
+    stabilized: Stabilized | None = None
 
 
 @attrs.frozen(eq=False)
@@ -165,18 +170,22 @@ class FluidStep:
     held : array of int
         The wall line's DOFs the wall holds at rest (a band whose inner face
         slides radially fixed): the wall's u_r is 0 there, as at the ends.
+    stabilization : Stabilization, optional
+        SUPG and grad-div (:mod:`multilayer_plugins.channel.stabilization`); only with advection.
     """
 
     def __init__(self, channel: Channel, density: float, viscosity: float, advection: bool,
                  wall: str = "coupled", solver: str = "superlu", reuse: Reuse = Reuse(),
                  ends: Mapping[str, BoundaryCondition] | None = None, backflow: float | None = None,
-                 interface_block: bool = False, held: np.ndarray | None = None):
+                 interface_block: bool = False, held: np.ndarray | None = None,
+                 stabilization: Stabilization | None = None):
         if wall not in WALL_MODES:
             raise ValueError(f"wall mode {wall!r} is not one of {WALL_MODES}")
         self.channel = channel
         self.density = density
         self.viscosity = viscosity
         self.advection = advection
+        self.stabilization = stabilization if advection else None
         self.wall = wall
         self.solver = solver
         self.stats = SolverStats()
@@ -363,6 +372,7 @@ class FluidStep:
         tractions = self.ends.tractions(times, dt, scheme, hist, fields)
         key = (mass_coefficient, *self.ends.resistances(tractions))
         constant = self._constant.get(key) if self.constant_matrix else None
+        stabilized = None
         if constant is not None:
             own = constant[0]
         else:
@@ -374,7 +384,13 @@ class FluidStep:
                 if fields.wz is not None:
                     a[0] -= fields.wz
             velocity, div = self._element_data(fields, mass_coefficient, a)
-            own = self._fill(velocity, div, div)
+            transposed = div
+            if self.stabilization is not None:  # SUPG's and grad-div's element matrices onto the Galerkin ones
+                stabilized = self.stabilization.step(fields, a, mass_coefficient, dt)
+                velocity = velocity + stabilized.velocity_block(self._uu.shape).ravel()
+                # SUPG's ∇p̄ on the velocity rows: into the slots of −divᵀ, which the filler scales by −1
+                transposed = div - stabilized.pressure_block(self._pu.shape[0]).ravel()
+            own = self._fill(velocity, div, transposed)
             self.ends.add_matrix(own, tractions, fields, advecting)
         data = own
         if interface is not None:  # the coupler's few interface entries added to a copy, not a refill
@@ -387,6 +403,8 @@ class FluidStep:
         own_rhs = np.zeros(self.ndofs)
         h = scheme.history([s.u for s in hist])
         own_rhs[: ch.nu] = -(self.density / dt) * self._uu.apply([(1.0, forms.mass_J, {"J": fields.J})], h)
+        if stabilized is not None:
+            own_rhs[: ch.nu] += stabilized.rhs(h)
         self.ends.add_rhs(own_rhs, tractions, fields)
         rhs = own_rhs
         if interface is not None:
@@ -400,7 +418,7 @@ class FluidStep:
                 fixed_values[self.interface_z_dofs] = domain.velocity_z
         self.assembly_s += time.perf_counter() - t0
         return FluidSystem(data, own, rhs, own_rhs, self.fixed, fixed_values[self.fixed], fields, domain, scheme,
-                           dt, hist, tractions, interface, key)
+                           dt, hist, tractions, interface, key, stabilized=stabilized)
 
     # -- solving --------------------------------------------------------------
     def solve(self, system: FluidSystem) -> Solution:
@@ -559,8 +577,15 @@ class FluidStep:
         if system.interface is not None:
             vbar = ch.wall_trace(ubar)
             interface = dt * float(vbar @ (system.interface.matrix @ vbar - system.interface.rhs))
+        stabilization = 0.0  # SUPG's and grad-div's part of the step tested with ū, by quadrature of the fields
+        if system.stabilized is not None:
+            history = S.history([s.u for s in system.history])
+            terms["dissipation.stabilization.fluid"] = system.stabilized.supg_power(
+                ubar, solution.mean[ch.nu:ch.ndofs], history)
+            terms["dissipation.grad_div.fluid"] = system.stabilized.grad_div_power(ubar)
+            stabilization = terms["dissipation.stabilization.fluid"] + terms["dissipation.grad_div.fluid"]
         after = (stored_new + terms["dissipation.numerical.fluid"] + terms["dissipation.viscous.fluid"] + interface
-                 + sum(convection.values()))
+                 + sum(convection.values()) + stabilization)
         before = stored_old + end_power["inlet"] + end_power["outlet"] + terms.get("work.wall", 0.0) + geometric
         terms["interface.power"] = interface
         terms["a2.residual"] = after - before
