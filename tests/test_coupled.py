@@ -153,7 +153,7 @@ def test_second_order_couplers_are_second_order(coupler, reference, tmp_path):
 
     Measured (thick / thin wall), errors and orders:
     splitting-cn    0.273 0.118 0.0277 → 1.21 2.09 | 0.129 0.0345 0.0088 → 1.90 1.97
-    monolithic-cn   0.158 0.0378 0.0093 → 2.06 2.02 | 0.031 0.0085 0.0022 → 1.88 1.92
+    monolithic-cn   0.160 0.0390 0.0097 → 2.04 2.00 | 0.030 0.0087 0.0023 → 1.80 1.90
     monolithic-bdf2 0.341 0.143 0.0398 → 1.26 1.85 | 0.054 0.0258 0.0073 → 1.07 1.82
     (Δt = 2e-4 is 15 steps per pulse: pre-asymptotic for the thick wall.)
     """
