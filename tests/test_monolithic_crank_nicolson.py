@@ -12,6 +12,7 @@ t = 0.0575 s (Δt = 5e-4), with the Koiter shell alone at its first step.
 
 import numpy as np
 import pytest
+from runs import assert_resume_is_bit_identical
 
 from multilayer.api import load_case, run
 from multilayer.coupling.kit import domain_velocity
@@ -168,3 +169,10 @@ def test_on_its_own_domains_the_geometric_remainder_is_crank_nicolsons_own(tmp_p
     G, own = np.array(seen).T
     assert np.max(np.abs(G)) > 0.0
     assert np.max(np.abs(G - own)) <= 1e-10 * np.max(np.abs(G))
+
+
+def test_a_resumed_run_keeps_the_fluids_own_domain_and_the_displacement_history(tmp_path):
+    """The fluid's own level (``State.extra``) and the two older displacements the domain velocity reads go
+    through a checkpoint: a run resumed at its middle writes the same bytes as one run through."""
+    assert_resume_is_bit_identical(tmp_path, "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3",
+                                   'coupler={model="monolithic",scheme="crank-nicolson"}', every=7)
