@@ -42,6 +42,7 @@ from multilayer.coupling.kit import (
     coupled_case_problems,
     external_force,
     fluid_columns,
+    fluid_domain,
     fluid_groups,
     lumen_param,
     predicted_domain,
@@ -72,8 +73,7 @@ class DirichletNeumann(ThickLumen, Coupler):
         return "prescribed"
 
     def energy(self, setup, state: State) -> dict[str, float]:
-        return {**wall_energy(setup.stack, self.scheme, state),
-                **setup.fluid.energy(state.fluid, state.eta, state.extra.get("eta_z"))}
+        return {**wall_energy(setup.stack, self.scheme, state), **setup.fluid.energy(state.fluid, *fluid_domain(state))}
 
     def accelerator(self):
         """The update of the interface velocity between iterations (implicit only)."""
@@ -94,11 +94,11 @@ class DirichletNeumann(ThickLumen, Coupler):
         for step, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
-            domain = predicted_domain(S, history, dt)
-            x = domain.velocity  # the wall velocity the fluid sees first
+            prediction = predicted_domain(S, history, dt)
+            x = prediction.velocity  # the wall velocity the fluid sees first
             if Rz is not None:
-                x = np.concatenate([x, domain.velocity_z])
-            system = fluid.system([s.fluid for s in history], domain, S, dt, (t0, t1))
+                x = np.concatenate([x, prediction.velocity_z])
+            system = fluid.system([s.fluid for s in history], prediction.domain, S, dt, (t0, t1))
             if accelerate is not None:
                 accelerate.start()
             iterations, residual = 0, 0.0
@@ -128,12 +128,14 @@ class DirichletNeumann(ThickLumen, Coupler):
                 x = accelerate.next(x, x_tilde, change)
                 x[ends] = 0.0
             eta_new = R @ w.wall.d
-            extra = {"acceleration": accelerate.memory()} if accelerate is not None else {}
+            extra = prediction.extra()
+            if accelerate is not None:
+                extra["acceleration"] = accelerate.memory()
             axial = None
             if Rz is not None:  # no-slip: the lumen's axial motion moves the domain too
                 extra.update(eta_z=Rz @ w.wall.d, v_z=Rz @ w.wall.V)
                 axial = (state.extra["eta_z"], extra["eta_z"])
-            terms = fluid.identity(prescribed, solution, state.eta, eta_new, axial)
+            terms = fluid.identity(prescribed, solution, *prediction.identity_levels(state, eta_new, axial))
             state = state.then(S.old_levels, n=step + 1, t=t1, wall=w.wall, fluid=solution.state,
                                v=R @ w.wall.V, eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)

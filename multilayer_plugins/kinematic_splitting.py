@@ -57,7 +57,7 @@ from multilayer.coupling.kit import (
     coupled_case_problems,
     external_force,
     fluid_columns,
-    fluid_eta,
+    fluid_domain,
     fluid_groups,
     lumen_layers,
     lumen_mass,
@@ -137,7 +137,7 @@ class KinematicSplitting(Coupler):
 
     def energy(self, setup, state: State) -> dict[str, float]:
         return {**wall_energy(setup.stack, self.scheme, state, LUMEN),
-                **setup.fluid.energy(state.fluid, fluid_eta(state))}
+                **setup.fluid.energy(state.fluid, fluid_domain(state)[0])}
 
     def traction(self, state: State, dt: float | None = None) -> np.ndarray:
         """τ̃: the fluid's force on the thin layer extrapolated from the last steps (0 at the start).
@@ -193,7 +193,7 @@ class KinematicSplitting(Coupler):
             # fluid's trace, so u^{n+1} = v^{n+1} on Γ
             v_mean_a1 = R @ a.mean
             interface = Interface(robin, robin @ v_mean_a1 - tau)
-            eta_old = fluid_eta(state)  # where the fluid's last domain ended (the wall's ηⁿ but under the impedance)
+            eta_old = fluid_domain(state)[0]  # where the fluid's last domain ended (the wall's ηⁿ but under the impedance)
             velocity = v_mean_a1 if response is None else (eta_a1 - eta_old) / dt
             domain = Domain(S.geometry([eta_a1, eta_old]), velocity)
             history = [x.fluid for x in state.history(S.old_levels)]
@@ -217,7 +217,7 @@ class KinematicSplitting(Coupler):
                 report = self.impedance_report(wall_step, f)
                 # the fluid's next step starts on the domain this one ended on, not on A3's wall: its kinetic
                 # energy is measured on one sequence of domains (theory §6, "The fluid's own domains")
-                extra[FLUID_ETA] = eta_a1
+                extra[FLUID_ETA[0]] = eta_a1
             return state.then(S.old_levels, n=w.n + 1, t=w.t1, wall=wall_new, fluid=sol.state, v=v_new,
                               eta=R @ wall_new.d, extra=extra), report
 

@@ -8,11 +8,15 @@ scheme's test-level unknowns (ū, p̄, V̄) with ū_r = V̄ on Γ, so the
 kinematic condition holds at every level.
 
 The geometry is explicit: the domain of each step is predicted from the
-previous wall velocities, vⁿ for backward Euler, the linear extrapolation
-to the evaluation time for Crank–Nicolson and BDF2 (second order).  The
-energy identity is the sum of the wall's and the fluid's; what the
-predicted domain misses of the true one is the fluid's geometric remainder
-(``dissipation.geometric.fluid``).  No splitting error: this is the
+previous wall motion (:func:`multilayer.coupling.kit.predicted_domain`),
+vⁿ for backward Euler, the linear extrapolation to the evaluation time for
+BDF2 and, for Crank–Nicolson, of the displacement's midpoint quotients,
+which its undamped mode (−1)ⁿ does not reach.  The energy identity is the
+sum of the wall's and the fluid's; what the predicted domain misses of the
+true one is the fluid's geometric remainder (``dissipation.geometric.fluid``),
+except under Crank–Nicolson, which damps nothing to cover it: there the
+fluid lives on its own domains, the predicted ones, and keeps only the
+scheme's own remainder (theory §6).  No splitting error: this is the
 accuracy reference of the project, and its cost anchor.
 
 On a thick first layer under ``lumen = "no-slip"`` the band's d_z DOFs on
@@ -40,6 +44,7 @@ from multilayer.coupling.kit import (
     coupled_case_problems,
     external_force,
     fluid_columns,
+    fluid_domain,
     fluid_groups,
     lumen_param,
     predicted_domain,
@@ -69,8 +74,7 @@ class Monolithic(ThickLumen, Coupler):
         return "no-slip" if self.no_slip(case) else "coupled"
 
     def energy(self, setup, state: State) -> dict[str, float]:
-        return {**wall_energy(setup.stack, self.scheme, state),
-                **setup.fluid.energy(state.fluid, state.eta, state.extra.get("eta_z"))}
+        return {**wall_energy(setup.stack, self.scheme, state), **setup.fluid.energy(state.fluid, *fluid_domain(state))}
 
     def numbering(self, setup) -> np.ndarray:
         """The unknown of the monolithic system of each wall DOF.
@@ -107,8 +111,8 @@ class Monolithic(ThickLumen, Coupler):
             A_wall, layout = held["wall"], held["layout"]
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
-            domain = predicted_domain(S, history, dt)
-            system = fluid.system([x.fluid for x in history], domain, S, dt, (t0, t1))
+            prediction = predicted_domain(S, history, dt)
+            system = fluid.system([x.fluid for x in history], prediction.domain, S, dt, (t0, t1))
             A_f, b_f, fixed_f, values_f = fluid.matrix(system)
             if layout is None or not layout.fits(A_f, A_wall):
                 layout = held["layout"] = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
@@ -125,11 +129,11 @@ class Monolithic(ThickLumen, Coupler):
             solution = fluid.advance(system, x[: fluid.ndofs])
             wstep = structure.finish(history, x[glob], forces, dt)
             eta_new = R @ wstep.wall.d
-            axial, extra = None, state.extra
+            axial, extra = None, {**state.extra, **prediction.extra()}
             if Rz is not None:  # no-slip: the lumen's axial motion moves the domain too
-                extra = {**state.extra, "eta_z": Rz @ wstep.wall.d, "v_z": Rz @ wstep.wall.V}
+                extra.update(eta_z=Rz @ wstep.wall.d, v_z=Rz @ wstep.wall.V)
                 axial = (state.extra["eta_z"], extra["eta_z"])
-            terms = fluid.identity(system, solution, state.eta, eta_new, axial)
+            terms = fluid.identity(system, solution, *prediction.identity_levels(state, eta_new, axial))
             new = state.then(S.old_levels, n=w.n + 1, t=t1, wall=wstep.wall, fluid=solution.state,
                              v=fluid.wall_velocity(solution.state), eta=eta_new, extra=extra)
             stored_f, work_f, dissipation_f = fluid_groups(terms)

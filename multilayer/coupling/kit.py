@@ -23,15 +23,6 @@ LUMEN_CONDITIONS = ("no-slip", "radial")
 #: the ``State.extra`` entries of the lumen's axial displacement and velocity under no-slip (line vectors)
 AXIAL = ("eta_z", "v_z")
 
-#: the ``State.extra`` entry of η where the fluid's last domain ended, when a coupler keeps it apart from the wall's
-FLUID_ETA = "fluid.eta"
-
-
-def fluid_eta(state) -> np.ndarray:
-    """η of the domain the fluid's last step ended on: the fluid's own sequence of domains (``FLUID_ETA``), the
-    wall's η where a coupler keeps none."""
-    return state.extra.get(FLUID_ETA, state.eta)
-
 
 def lumen_param():
     """The ``lumen`` parameter of a coupler that takes a fluid directly on a thick band."""
@@ -161,23 +152,126 @@ def fluid_columns(terms: Mapping[str, float]) -> dict[str, float]:
     return {k: v for k, v in terms.items() if k.startswith("end.")}
 
 
-def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Domain:
+@attrs.frozen(eq=False)
+class Prediction:
+    """The explicit domain of a step whose wall is not known yet, and what it was predicted from.
+
+    ``domain`` is what the fluid step is assembled on; ``velocity`` (and
+    ``velocity_z`` under no-slip) the wall velocity predicted at tⁿ + θΔt
+    (:func:`domain_velocity`), a partitioned coupler's first guess of the
+    interface velocity.  ``levels`` holds, for a scheme whose fluid lives on
+    its own domains (Crank–Nicolson, :func:`own_domains`), the fluid's η at
+    tⁿ and tⁿ⁺¹ by :data:`FLUID_ETA` key: its kinetic energy is measured on
+    them and the new one goes to the next state's ``extra``.
+    """
+
+    domain: Domain
+    velocity: np.ndarray
+    velocity_z: np.ndarray | None = None
+    levels: Mapping[str, tuple[np.ndarray, np.ndarray]] = attrs.field(factory=dict)
+
+    def identity_levels(self, state, eta_new: np.ndarray, axial: tuple | None) -> tuple:
+        """(η at tⁿ, η at tⁿ⁺¹, the axial pair) the fluid's kinetic energy is measured on in the step's identity:
+        the fluid's own levels where it has them, else the wall's (``state.eta``, ``eta_new``, ``axial``)."""
+        eta = self.levels.get(FLUID_ETA[0], (state.eta, eta_new))
+        return (*eta, self.levels.get(FLUID_ETA[1], axial))
+
+    def extra(self) -> dict[str, np.ndarray]:
+        """The fluid's new levels, for the next state's ``extra``."""
+        return {key: new for key, (_, new) in self.levels.items()}
+
+
+#: the ``State.extra`` entries of the fluid's own domain (monolithic and Dirichlet–Neumann under Crank–Nicolson, the
+#: kinematic splitting under the wall's impedance): the lumen's η and, under no-slip, d_z
+FLUID_ETA = ("fluid_eta", "fluid_eta_z")
+
+
+def fluid_domain(state) -> tuple[np.ndarray, np.ndarray | None]:
+    """(η, d_z) of the domain the fluid's kinetic energy is measured on in ``state``: its own where it has one."""
+    eta_z = state.extra.get(AXIAL[0])
+    return state.extra.get(FLUID_ETA[0], state.eta), state.extra.get(FLUID_ETA[1], eta_z)
+
+
+def own_domains(scheme: TimeScheme) -> bool:
+    """True when the fluid lives on its own sequence of domains: Crank–Nicolson, whose test level is the midpoint.
+
+    A one-step scheme without numerical dissipation lets the geometric
+    remainder G of an explicit domain (theory §5) grow; with its own levels
+    G is the scheme's own ⅛ρ_f∫(J^{n+1} − Jⁿ)|u^{n+1} − uⁿ|² (theory §6).
+    Backward Euler and BDF2 keep the wall's levels (their numbers unchanged).
+    """
+    return scheme.beta[0] != 1.0
+
+
+def predicted_domain(scheme: TimeScheme, history: Sequence, dt: float) -> Prediction:
     """The explicit domain of a step whose wall is not known yet (monolithic, Dirichlet–Neumann).
 
-    The wall velocity is extrapolated to where the scheme evaluates its
-    operator, the displacement integrated from it (Σα_k η^{n+1−k} = Δt c),
-    and the domain is the scheme's geometry of those (theory §6); under
-    no-slip (``eta_z``, ``v_z`` in the states' ``extra``) the lumen's axial
-    motion likewise.
+    The wall velocity c is extrapolated to where the scheme evaluates its
+    operator (:func:`domain_velocity`) and the displacement integrated from
+    it, Σα_k η^{n+1−k} = Δt c.  Backward Euler and BDF2: the domain is the
+    scheme's geometry of those, moving with c.  Crank–Nicolson
+    (:func:`own_domains`): the fluid's domain runs from its own level η̃ⁿ
+    (the prediction of the step before, ηⁿ at the start) to the prediction
+    η̂^{n+1} = ηⁿ + Δt c: its geometry the midpoint (η̃ⁿ + η̂^{n+1})/2, its
+    velocity (η̂^{n+1} − η̃ⁿ)/Δt (theory §6).  Under no-slip (``eta_z``,
+    ``v_z`` in the states' ``extra``) the lumen's axial motion likewise.
     """
-    etas = [x.eta for x in history]
-    velocity = scheme.extrapolate([x.v for x in history])
-    eta = scheme.geometry([scheme.displacement(velocity, etas, dt), *etas])
-    if AXIAL[0] not in history[0].extra:
-        return Domain(eta, velocity)
-    etas_z = [x.extra["eta_z"] for x in history]
-    velocity_z = scheme.extrapolate([x.extra["v_z"] for x in history])
-    return Domain(eta, velocity, scheme.geometry([scheme.displacement(velocity_z, etas_z, dt), *etas_z]), velocity_z)
+    components = [(lambda x: x.eta, lambda x: x.v, FLUID_ETA[0])]
+    if AXIAL[0] in history[0].extra:
+        components.append((lambda x: x.extra[AXIAL[0]], lambda x: x.extra[AXIAL[1]], FLUID_ETA[1]))
+    own = own_domains(scheme)
+    parts, levels = [], {}
+    for displacement, velocity, key in components:
+        etas = [displacement(x) for x in history]
+        c = domain_velocity(scheme, history, dt, displacement, velocity)
+        new = scheme.displacement(c, etas, dt)
+        if own:
+            old = history[0].extra.get(key, etas[0])
+            levels[key] = (old, new)
+            parts.append((c, scheme.geometry([new, old]), (new - old) / dt))
+        else:
+            parts.append((c, scheme.geometry([new, *etas]), c))
+    (c, eta, moving), *axial = parts
+    if not axial:
+        return Prediction(Domain(eta, moving), c, None, levels)
+    c_z, eta_z, moving_z = axial[0]
+    return Prediction(Domain(eta, moving, eta_z, moving_z), c, c_z, levels)
+
+
+def domain_velocity(scheme: TimeScheme, history: Sequence, dt: float, displacement, velocity) -> np.ndarray:
+    """The wall velocity at tⁿ + θΔt, extrapolated from the velocities the wall's displacement moved with.
+
+    Those are the scheme's test-level velocities v̄ of the previous steps
+    (Σα_j η^{k+1−j} = Δt_k v̄_k).  Where the test level is the new level
+    (backward Euler, BDF2) they are the velocity levels, extrapolated as
+    the scheme does (:meth:`TimeScheme.extrapolate`).  Crank–Nicolson's test
+    level is the midpoint: its velocity levels carry the scheme's undamped
+    mode (−1)ⁿ, which v̄ = (vᵏ⁺¹ + vᵏ)/2 cancels and the displacement never
+    sees; extrapolating the levels would double that mode into the domain's
+    motion (theory §6).  So the samples are the displacement's difference
+    quotients (η^{k+1} − ηᵏ)/Δt_k at the midpoints of the steps in the
+    states' chain (the initial level v⁰ at t⁰ where the chain starts),
+    extrapolated linearly to tⁿ + Δt/2: second order.
+
+    ``displacement`` and ``velocity`` read η and v from a state (radial or
+    axial component).
+    """
+    if not own_domains(scheme):
+        return scheme.extrapolate([velocity(x) for x in history])
+    samples = []  # (time, velocity) newest first, at most two
+    state = history[0]
+    while len(samples) < 2:
+        older = state.previous
+        if older is None:  # the chain's end: the initial level (or a chain cut short) is a sample of its own
+            samples.append((state.t, velocity(state)))
+            break
+        samples.append((0.5 * (state.t + older.t), (displacement(state) - displacement(older)) / (state.t - older.t)))
+        state = older
+    if len(samples) == 1:
+        return samples[0][1]
+    (ta, ca), (tb, cb) = samples
+    target = history[0].t + scheme.theta * dt
+    return ca + (target - ta) / (ta - tb) * (ca - cb)
 
 
 def quadratic(M: sp.spmatrix):
