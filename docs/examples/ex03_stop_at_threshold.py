@@ -6,7 +6,7 @@ loop stops as soon as the wall at z = 2 cm has moved outward by 30 µm; the
 crossing time is interpolated between the last two steps.  Leaving the loop
 ends the run: no later step is computed.
 
-Prints the crossing time in ms (about 4.86 ms on this coarse mesh).
+Prints the crossing time in ms (about 3.87 ms on this coarse mesh).
 """
 
 from pathlib import Path

@@ -6,7 +6,7 @@ or ``multilayer compare --vary`` would do.  The shell holds the wall by
 its hoop stiffness (C0 η), the membrane only by its tension along z (C1 η_zz):
 the same pulse lifts them differently.
 
-Prints the ratio of the peak η at z = 1 cm, membrane over shell (about 0.80).
+Prints the ratio of the peak η at z = 1 cm, membrane over shell (about 0.63).
 """
 
 from pathlib import Path
