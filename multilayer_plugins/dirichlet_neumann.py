@@ -49,6 +49,7 @@ from multilayer.coupling.kit import (
     window_loads,
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
+from multilayer.fluid.contract import ENDS
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
@@ -149,6 +150,16 @@ class DirichletNeumann(ThickLumen, Coupler):
 
 class DirichletNeumannExplicit(DirichletNeumann):
     name = "dirichlet-neumann-explicit"
+
+    def check_case(self, case) -> list[str]:
+        """Also refuses a flow-rate end: the prescribed inflow must leave at once through the other end."""
+        return super().check_case(case) + [
+            f"loads.{end} prescribes a flow rate, which {self.name} cannot take: its fluid step moves the wall with "
+            "the wall's last velocity, so the prescribed inflow has no volume to fill and is forced through the "
+            "other end in one step (the incompressibility dilemma of Dirichlet–Neumann coupling; on the carotid-like "
+            "tube the energy outgrew the work at the first step); choose 'dirichlet-neumann-implicit', "
+            "'kinematic-splitting' or 'monolithic'"
+            for end in ENDS if getattr(case.loads, end).constraint]
 
 
 class DirichletNeumannImplicit(DirichletNeumann):
