@@ -106,14 +106,14 @@ def main(argv: list[str] | None = None) -> int:
         key, _, values = vary.partition("=")
         variants = [[*v, f"{key}={value}"] for v in variants for value in split_values(values)]
     runs = {}
-    for coupler in split_values(args.couplers):
+    for spec in split_values(args.couplers):
         for sets in variants:
-            case = load_case(args.case, [*args.sets, *sets, f"coupler={coupler}"], registry)
+            case = load_case(args.case, [*args.sets, *sets, f"coupler={spec}"], registry)
             setup, coupler = prepare(case, registry)
             state = coupler.initial_state(setup)
-            label = " ".join([coupler, *sets])
+            label = " ".join([spec, *sets])
             runs[label] = {"setup": setup, "steps": coupler.evolve(setup, state), "samples": [],
-                           "coupler": coupler, "sets": sets}
+                           "coupler": spec, "sets": sets}
     fresh = []
     reference = next(iter(runs.values()))["setup"]
     for _ in range(args.steps):

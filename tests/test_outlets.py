@@ -16,8 +16,8 @@ def run(tmp_path, case, *sets):
 
 
 def test_a_resistance_matched_to_the_impedance_absorbs_the_pulse(tmp_path):
-    """Measured at 30 cells along z (the case has 60: 6.8 % and 3.2 % there, scripts/boundary_figures.py): the
-    wave reflected back to z = 3 cm is 7.0 % of the one p_out = 0 reflects, at z = 1 cm 3.1 %."""
+    """Measured at 30 cells along z (the case has 60; docs/boundary-conditions.md, "Absorption"): the wave
+    reflected back to z = 3 cm is 7.3 % of the one p_out = 0 reflects, at z = 1 cm 3.4 %."""
     coarse = ("mesh.nz=30",)
     matched = run(tmp_path / "matched", "pulse-resistance", *coarse)
     free = run(tmp_path / "free", "pulse-resistance", *coarse, "loads.outlet=0.0")
@@ -33,7 +33,7 @@ def test_a_resistance_matched_to_the_impedance_absorbs_the_pulse(tmp_path):
 
 
 def test_an_rcr_outlet_reaches_a_periodic_state(tmp_path):
-    """Measured: the outlet pressure changes by 48 %, 6.4 % and 0.58 % from cycle to cycle (a run from P_c⁰ near
+    """Measured: the outlet pressure changes by 46 %, 0.23 % and 0.083 % from cycle to cycle (a run from P_c⁰ near
     the periodic mean), and the mean inflow and outflow of the last cycle agree (mass stored in the wall
     returns each cycle)."""
     s = run(tmp_path / "rcr", "physiological-rcr")
