@@ -83,8 +83,6 @@ ROBINS = ("impedance", "inertia")
 THICK_LUMEN = ("its steps hand over the thin layer's radial motion on Γ (and, with robin = 'inertia', its Robin term "
                "is that layer's mass ρ₁h/Δt, without which it loses its added-mass stability), while a band at the "
                "fluid moves in both components")
-
-
 #: why the paper's Robin term cannot take a prescribed inflow
 INERTIA_LEAK = ("its fluid step sees the wall as the thin layer's mass alone, so the fluid leaves through Γ faster "
                 "than the wall moves, by (ω₁Δt)² with ω₁² = k/(ρ₁h) the wall's stiffness over that mass, and the "
