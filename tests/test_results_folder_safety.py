@@ -303,3 +303,54 @@ def test_a_campaign_folder_owns_only_what_it_wrote(tmp_path, capsys, monkeypatch
     monkeypatch.chdir(tmp_path)
     assert main([*CAMPAIGN, "--out", "."]) == 2
     assert "is the current directory" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("entry", ["../outside.txt", "ABSOLUTE", "sub", "sub/keep.csv", "notes.txt", 7])
+def test_a_manifest_naming_what_a_run_never_writes_is_refused_and_nothing_is_touched(tmp_path, capsys, entry):
+    """Issue 36: a manifest is data a folder carries; a crafted one (a path out of the folder, an absolute path,
+    a sub-folder, a user's file, not a name at all) must not make the next run remove anything."""
+    outside = tmp_path / "outside.txt"
+    outside.write_bytes(b"a user's file beside the folder\n")
+    out = tmp_path / "run"
+    assert main(argv(out)) == 0
+    files = user_files(out)
+    manifest = json.loads((out / MANIFEST).read_text())
+    manifest["files"].append(str(outside) if entry == "ABSOLUTE" else entry)
+    (out / MANIFEST).write_text(json.dumps(manifest))
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    assert main(argv(out)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a file a run of multilayer writes in its folder" in err, err
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before  # nothing removed or written
+    assert all((out / name).read_bytes() == data for name, data in files.items())
+
+
+def test_a_file_of_the_run_replaced_by_a_link_is_removed_as_a_link_and_its_target_kept(tmp_path):
+    out = tmp_path / "run"
+    assert main(argv(out)) == 0
+    target = tmp_path / "precious.csv"
+    target.write_bytes(b"not the run's\n")
+    (out / "series.csv").unlink()
+    (out / "series.csv").symlink_to(target)
+    assert main(argv(out)) == 0
+    assert target.read_bytes() == b"not the run's\n" and not (out / "series.csv").is_symlink()
+
+
+@pytest.mark.parametrize("entry", ["../../outside_000001.vtu", "ABSOLUTE", "fluid_000001.vtu", "link_000001.vtu"])
+def test_read_results_reads_only_the_runs_own_snapshots(tmp_path, entry):
+    """Issue 36: a .pvd is data; ``read_results`` follows it only to this part's snapshots inside the folder."""
+    import multilayer as ml
+
+    out = tmp_path / "run"
+    assert main(argv(out)) == 0
+    (out / "eta_lumen.csv").unlink()  # the snapshots are then what η(z, t) is read from
+    outside = tmp_path / "outside_000001.vtu"
+    outside.write_bytes((out / "wall_000005.vtu").read_bytes())
+    if entry == "link_000001.vtu":
+        (out / entry).symlink_to(outside)
+    pvd = (out / "wall.pvd").read_text()
+    first = pvd.split('file="')[1].split('"')[0]
+    (out / "wall.pvd").write_text(pvd.replace(first, str(outside) if entry == "ABSOLUTE" else entry, 1))
+    with pytest.raises(ResultsError, match="not a snapshot wall_<step>.vtu of the run in its folder"):
+        ml.read_results(out)

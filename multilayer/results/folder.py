@@ -57,7 +57,8 @@ FIXED = ("summary.json", "series.csv", "eta_lumen.csv", "checkpoint.json", "chec
          "wall.pvd", "fluid.pvd", *FIGURES)
 #: a temporary of this module: ``.<name>.<8 hex digits>.tmp``
 _TEMP = re.compile(r"\.(.+)\.[0-9a-f]{8}\.tmp")
-_SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
+#: a snapshot a run writes: ``<part>_<step>.vtu``
+SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
 
 
 def _jsonable(value: Any) -> Any:
@@ -87,7 +88,15 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     except (OSError, ValueError, ResultsError):
         manifest = None
     if isinstance(manifest, dict) and manifest.get("format") == FORMAT and isinstance(manifest.get("files"), list):
-        return frozenset(str(name) for name in manifest["files"]) | {MANIFEST}
+        listed = manifest["files"]
+        strangers = [name for name in listed if not _written_by_a_run(name)]
+        if strangers:  # the manifest is data: it names files, it does not choose which a run may remove
+            raise ResultsError(f"{folder / MANIFEST} lists {strangers[0]!r}"
+                               f"{f' and {len(strangers) - 1} more' if len(strangers) > 1 else ''}, not a file a run "
+                               f"of multilayer writes in its folder: refused, nothing touched (a run owns only "
+                               f"{', '.join(FIXED[:3])}, … and its snapshots <part>_<step>.vtu, directly inside "
+                               f"the folder)")
+        return frozenset(listed) | {MANIFEST}
     if manifest is not None or (folder / MANIFEST).is_symlink():
         return None  # someone else's manifest.json
     try:
@@ -98,9 +107,17 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     if not isinstance(summary, dict) or not ({"case_hash", "multilayer_version"} & summary.keys()
                                              or summary.keys() == {"status", "pid"}):
         return None
-    snapshots = {name for name in _names(folder) if (m := _SNAPSHOT.fullmatch(name))
+    snapshots = {name for name in _names(folder) if (m := SNAPSHOT.fullmatch(name))
                  and m[1] in ResultsFolder.PARTS}
     return frozenset({*FIXED, *snapshots})
+
+
+def _written_by_a_run(name: object) -> bool:
+    """True for a name a run of multilayer writes directly inside its folder: a fixed name or a snapshot."""
+    if not isinstance(name, str):
+        return False
+    m = SNAPSHOT.fullmatch(name)
+    return name in FIXED or name == MANIFEST or (m is not None and m[1] in ResultsFolder.PARTS)
 
 
 def may_write(folder: Path | str, name: str) -> bool:
@@ -228,7 +245,7 @@ class ResultsFolder:
                                f"{self.path} is not a results folder of multilayer (no {MANIFEST}): cannot resume")
         previous = set(previous or ())
         names = _names(self.path)
-        wanted = {MANIFEST, *FIXED} | {n for n in names if (m := _SNAPSHOT.fullmatch(n)) and m[1] in self.PARTS}
+        wanted = {MANIFEST, *FIXED} | {n for n in names if (m := SNAPSHOT.fullmatch(n)) and m[1] in self.PARTS}
         clash = sorted(n for n in names if n in wanted and n not in previous)
         if clash:
             raise ResultsError(f"{self.path} holds {', '.join(clash[:3])}{' …' if len(clash) > 3 else ''} that no "
@@ -312,7 +329,7 @@ class ResultsFolder:
 
     def keep_until(self, step: int, snapshots: Mapping[str, Sequence[tuple[float, str]]]) -> None:
         """Resuming after ``step``: drop the snapshots written later, restore the collections."""
-        later = [name for name in self._owned if (m := _SNAPSHOT.fullmatch(name)) and m[1] in self.PARTS
+        later = [name for name in self._owned if (m := SNAPSHOT.fullmatch(name)) and m[1] in self.PARTS
                  and int(m[2]) > step]
         for name in later:
             self._remove(name)

@@ -14,6 +14,9 @@ import attrs
 import meshio
 import numpy as np
 
+from multilayer.results.files import ResultsError
+from multilayer.results.folder import SNAPSHOT
+
 
 @attrs.frozen(eq=False)
 class RunData:
@@ -111,7 +114,13 @@ def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarr
         return None
     times, rows, z = [], [], None
     for dataset in ET.parse(pvd).getroot().iter("DataSet"):
-        mesh = meshio.read(folder / dataset.get("file"))
+        name = dataset.get("file")
+        # a collection is data: it may name only this part's snapshots, directly inside the folder
+        if not (isinstance(name, str) and (m := SNAPSHOT.fullmatch(name)) and m[1] == part
+                and not (folder / name).is_symlink()):
+            raise ResultsError(f"{pvd} names {name!r}, not a snapshot {part}_<step>.vtu of the run in its folder: "
+                               "not read")
+        mesh = meshio.read(folder / name)
         on_lumen = np.isclose(mesh.points[:, 1], radius, rtol=0.0, atol=1e-9 * radius)
         order = np.argsort(mesh.points[on_lumen, 0], kind="stable")
         z = mesh.points[on_lumen, 0][order]
