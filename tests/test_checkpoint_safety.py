@@ -204,3 +204,52 @@ def test_values_a_checkpoint_cannot_hold_are_refused_when_written():
     again = checkpoint.decode(json.loads(json.dumps(checkpoint.encode(value, data), allow_nan=False)), data)
     assert again["a"][:2] == (1, 2.5) and again["a"][2] == float("inf") and again["b"] is True
     assert np.array_equal(again["a"][3][0], np.arange(3.0)) and again["a"][3][1:] == [None, "s"]
+
+
+def run_into(out: Path, *sets: str) -> Path:
+    a = ["run", str(CASES / "pulse-koiter-thick.toml"), "--out", str(out), "--quiet", "--no-plots",
+         "--checkpoint-every", "5"]
+    for s in (*SMALL, *sets):
+        a += ["--set", s]
+    assert main(a) == 0
+    return out
+
+
+@pytest.mark.parametrize("other", [(), ("time.dt=5e-5",)], ids=["same-case", "another-case"])
+def test_a_checkpoint_of_another_run_is_refused_and_the_folder_unchanged(good, tmp_path, capsys, other):
+    """Issue 36: a checkpoint carries the identity of the run that owns its folder; one copied in from another
+    run (of the same case or not) would append that run's rows to this folder's series."""
+    out = copy(good, tmp_path / "mine")
+    theirs = run_into(tmp_path / "theirs", *other)
+    for name in (checkpoint.FILE, checkpoint.ARRAYS):
+        (out / name).write_bytes((theirs / name).read_bytes())
+    series = (out / "series.csv").read_bytes()
+    refused(out, capsys, "belongs to another run")
+    assert (out / "series.csv").read_bytes() == series
+
+
+@pytest.mark.parametrize("edit, words", [
+    ("counter", "its tally at step"),
+    ("level", "is not the step before"),
+    ("nan", "not finite"),
+    ("inf", "not finite"),
+])
+def test_a_hand_edited_checkpoint_with_its_digest_recomputed_is_refused(good, tmp_path, capsys, edit, words):
+    """A consistent state is checked, not only a digest a user can recompute: the step counter against the
+    state's, each older level one step before, every number finite."""
+    out = copy(good, tmp_path / edit)
+    document = json.loads((out / checkpoint.FILE).read_text())
+    document.pop("sha256")
+    data = arrays(out)
+    if edit == "counter":
+        document["tally"]["dict"]["steps"] += 1
+    elif edit == "level":
+        document["state"]["dict"]["previous"]["dict"]["n"] -= 1
+    elif edit == "inf":
+        document["tally"]["dict"]["t"] = {"float": "inf"}
+    else:
+        key = next(k for k, v in data.items() if v.dtype.kind == "f" and v.size)
+        data[key] = data[key].copy()
+        data[key].flat[0] = np.nan
+    rewrite(out, document, data)
+    refused(out, capsys, *words.split("|"))

@@ -27,6 +27,7 @@ import json
 import math
 import os
 import re
+import secrets
 from collections.abc import Mapping, Sequence
 from contextlib import suppress
 from pathlib import Path
@@ -112,6 +113,17 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     return frozenset({*FIXED, *snapshots})
 
 
+def run_identity(folder: Path | str) -> str | None:
+    """The identity of the run that owns ``folder`` (its manifest's ``run``); None when it records none."""
+    try:
+        with open_nofollow(Path(folder) / MANIFEST, os.O_RDONLY, "r") as f:
+            manifest = json.load(f)
+    except (OSError, ValueError, ResultsError):
+        return None
+    run = manifest.get("run") if isinstance(manifest, dict) else None
+    return run if isinstance(run, str) else None
+
+
 def _written_by_a_run(name: object) -> bool:
     """True for a name a run of multilayer writes directly inside its folder: a fixed name or a snapshot."""
     if not isinstance(name, str):
@@ -181,6 +193,8 @@ class ResultsFolder:
     def __init__(self, out: Path | str, fresh: bool = True, force: bool = False):
         self._lock_fd: int | None = None
         self._owned: set[str] = set()
+        #: the identity of the run that owns the folder (its manifest's ``run``): a checkpoint carries it
+        self.run_id: str | None = None
         self._ahead: set[str] = set()  # snapshots claimed before their step came (see _claim_snapshot)
         self._last: dict[str, tuple[int, int]] = {}  # per collection: its last snapshot's step, snapshots claimed
         self._snapshots: dict[str, list[tuple[float, str]]] = {}
@@ -257,6 +271,7 @@ class ResultsFolder:
             for name in sorted(previous - {MANIFEST}):
                 self._remove(name)
             previous = set()
+        self.run_id = secrets.token_hex(8) if fresh else run_identity(self.path)
         self._owned = previous | set(FIXED)
         self._write_manifest()
 
@@ -271,7 +286,8 @@ class ResultsFolder:
             raise ResultsError(f"cannot remove {self.path / name}: {exc.strerror or exc}") from None
 
     def _write_manifest(self) -> None:
-        manifest = {"format": FORMAT, "files": sorted(self._owned - {MANIFEST})}
+        manifest = {"format": FORMAT, "files": sorted(self._owned - {MANIFEST}),
+                    **({"run": self.run_id} if self.run_id is not None else {})}
         try:
             write_atomically(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
         except OSError as exc:

@@ -47,6 +47,7 @@ from multilayer.case.model import Case
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.files import atomic_file
+from multilayer.results.folder import run_identity
 from multilayer.runner.volume import VolumeLedger
 from multilayer.scene.state import State, WallState
 from multilayer.version import __version__
@@ -55,7 +56,7 @@ FILE = "checkpoint.json"  #: the checkpoint's entry point (the arrays are in :da
 ARRAYS = "checkpoint.npz"
 LEGACY = "checkpoint.pkl"  #: what versions before 2 wrote: a pickle, never read
 MAGIC = "multilayer-checkpoint"
-FORMAT = 2  #: the format version: a newer one is refused
+FORMAT = 3  #: the format version: a newer one is refused (3: the owning run's identity)
 #: the dtypes an array of a checkpoint may have
 DTYPES = ("b", "i", "u", "f", "c")
 _SNAPSHOT = re.compile(r"(wall|fluid)_[0-9]{6}\.vtu")
@@ -271,10 +272,11 @@ def _without_end(resolved: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def save(folder: Path, case: Case, registry: Registry, state: State, tally: Any,
-         snapshots: Mapping[str, list], every: int, wall_time_s: float, setup: Any) -> Path:
+         snapshots: Mapping[str, list], every: int, wall_time_s: float, setup: Any, run: str | None = None) -> Path:
     """Write ``checkpoint.npz`` and ``checkpoint.json`` (each written whole before it replaces the previous one).
 
-    ``setup`` is the run's: its fluid writes its state's data, and its solvers their held states.
+    ``setup`` is the run's: its fluid writes its state's data, and its solvers their held states.  ``run`` is
+    the identity of the run that owns the folder (:attr:`ResultsFolder.run_id`): only that run resumes from it.
     """
     arrays: dict[str, np.ndarray] = {}
     solvers = [[name, None if stats.solver is None else stats.solver.held()] for name, stats in _solvers(setup)]
@@ -291,6 +293,7 @@ def save(folder: Path, case: Case, registry: Registry, state: State, tally: Any,
         "tally": encode(_tally_data(tally, wall_time_s), arrays),
         "snapshots": encode({k: [[float(t), str(f)] for t, f in v] for k, v in snapshots.items()}, arrays),
         "solvers": encode([[name, held] for name, held in solvers if held is not None], arrays),
+        "run": run,
     }
     document["sha256"] = digest(document, arrays)
     # each written whole to a fresh temporary and renamed into place (never through a symbolic link); a crash
@@ -367,7 +370,7 @@ def load(folder: Path, registry: Registry, until: float | None = None) -> Checkp
     document, arrays = _read(folder)
     path = folder / FILE
     keys = ("multilayer_version", "resolved", "base_dir", "case_digest", "plugins", "every", "state", "tally",
-            "snapshots", "solvers")
+            "snapshots", "solvers", "run")
     missing = [k for k in keys if k not in document]
     if missing:
         raise CheckpointError(f"{path} lacks {', '.join(missing)}")
@@ -394,8 +397,16 @@ def load(folder: Path, registry: Registry, until: float | None = None) -> Checkp
                 _held_check(held)
             except ValueError as exc:
                 raise ValueError(f"solver {name!r}: {exc}") from None
+        _all_finite(state, "state")
+        if not math.isfinite(tally.t):
+            raise ValueError(f"the tally's t = {tally.t!r} is not finite")
+        _counters_agree(state, tally)
     except (ValueError, TypeError) as exc:
         raise CheckpointError(f"{path} is malformed: {exc}") from None
+    owner = run_identity(folder)
+    if document["run"] is None or document["run"] != owner:
+        raise CheckpointError(f"{path} belongs to another run than the one whose results are in {folder} "
+                              f"(its run {document['run']!r}, the folder's {owner!r}): not resumed, nothing touched")
     if until is not None:
         if until <= tally.t:
             raise CheckpointError(f"--until {until:g} s is not after the checkpoint's t = {tally.t:g} s")
@@ -413,6 +424,38 @@ def load(folder: Path, registry: Registry, until: float | None = None) -> Checkp
         changed = [f"{k}: {plugins_then.get(k)} → {v}" for k, v in plugins.items() if plugins_then.get(k) != v]
         raise CheckpointError("the plugins differ from the checkpoint's, refusing to resume: " + "; ".join(changed))
     return Checkpoint(case, state, tally, snapshots, int(document["every"]), [tuple(s) for s in solvers])
+
+
+def _all_finite(value: Any, where: str) -> None:
+    """Every number in ``value`` (decoded data: mappings, lists, arrays) finite: a state of NaN resumes nothing."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _all_finite(v, f"{where}.{k}")
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _all_finite(v, f"{where}[{i}]")
+    elif isinstance(value, np.ndarray):
+        if value.dtype.kind in "fc" and not np.all(np.isfinite(value)):
+            raise ValueError(f"{where} holds a number that is not finite")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{where} is not finite")
+
+
+def _counters_agree(state: Any, tally: Any) -> None:
+    """The state's step and time are the tally's, and each older level one step and some time before."""
+    if not isinstance(state, dict):
+        raise ValueError("the state should be a mapping")
+    if state.get("n") != tally.steps or state.get("t") != tally.t:
+        raise ValueError(f"the state is at step {state.get('n')!r}, t = {state.get('t')!r}, its tally at step "
+                         f"{tally.steps}, t = {tally.t!r}")
+    level = state
+    while isinstance(level.get("previous"), dict):
+        older = level["previous"]
+        if not (isinstance(older.get("n"), int) and isinstance(older.get("t"), float)
+                and older["n"] == level["n"] - 1 and older["t"] < level["t"]):
+            raise ValueError(f"the state's older level (step {older.get('n')!r}, t = {older.get('t')!r}) is not "
+                             f"the step before step {level['n']!r} at t = {level['t']!r}")
+        level = older
 
 
 def _held_check(held: Any) -> None:

@@ -235,7 +235,8 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
             if checkpoint_every and (step.n % checkpoint_every == 0 or signals()):
                 with signals.writing():
                     checkpoint.save(results.path, case, registry, step.state, tally, results.snapshots,
-                                    checkpoint_every, time.perf_counter() - wall_t0, setup)
+                                    checkpoint_every, time.perf_counter() - wall_t0, setup,
+                                    getattr(results, "run_id", None))
             if signals():
                 raise Interrupted(signals())
     except Interrupted as exc:
