@@ -16,6 +16,7 @@ The Python API (:mod:`multilayer.api`, ``docs/python-api.md``)::
 from multilayer.version import __version__
 
 __all__ = [
+    "ArgumentError",
     "Case",
     "CaseError",
     "Results",

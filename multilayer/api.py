@@ -40,7 +40,29 @@ from multilayer.runner.held import HeldResults
 from multilayer.runner.loop import run_case, run_held
 from multilayer.runner.stepping import RunFailed, Step, Tally, iterate_steps, setting_up
 
-__all__ = ["Case", "CaseError", "Results", "RunFailed", "Step", "load_case", "read_results", "run", "steps"]
+__all__ = ["ArgumentError", "Case", "CaseError", "Results", "RunFailed", "Step", "load_case", "read_results", "run",
+           "steps"]
+
+
+class ArgumentError(TypeError, ValueError):
+    """A function of the Python API given an argument of the wrong type or value; the message names it."""
+
+
+def _path_arg(function: str, name: str, value: Any, optional: bool = False) -> None:
+    if (value is None and optional) or isinstance(value, (str, os.PathLike)):
+        return
+    raise ArgumentError(f"{function}({name}=...): expected a path (str or os.PathLike){' or None' if optional else ''},"
+                        f" got {type(value).__name__} {value!r:.60}")
+
+
+def _case_arg(function: str, case: Any) -> None:
+    if isinstance(case, Case):
+        return
+    if isinstance(case, (str, os.PathLike)):
+        raise ArgumentError(f"{function}(case=...): expected a Case, got the path {str(case)!r}: read it first, "
+                            f"multilayer.load_case({str(case)!r})")
+    raise ArgumentError(f"{function}(case=...): expected a Case (from multilayer.load_case), got "
+                        f"{type(case).__name__} {case!r:.60}")
 
 #: η(z, t) on the lumen: (z, t, eta) with eta[i, j] = η(t[i], z[j])
 LumenField = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -90,10 +112,19 @@ def load_case(path: str | os.PathLike[str], overrides: Iterable[str] | Mapping[s
     ...
     multilayer.plugin.problems.CaseError: layers[0].tension = -1: expected a number >= 0.0 (dyn/cm) (from --set)
     """
+    _path_arg("load_case", "path", path)
     if isinstance(overrides, str):
         overrides = [overrides]
     elif isinstance(overrides, Mapping):
+        if not all(isinstance(k, str) for k in overrides):
+            raise ArgumentError("load_case(overrides=...): a mapping's keys are key paths (str), like 'time.dt'")
         overrides = _override_strings(overrides)
+    else:
+        items = list(overrides) if isinstance(overrides, Iterable) else None
+        if items is None or not all(isinstance(o, str) for o in items):
+            raise ArgumentError(f"load_case(overrides=...): expected 'key=value' strings or a mapping of key paths "
+                                f"to values, got {type(overrides).__name__} {overrides!r:.60}")
+        overrides = items
     return _load_case(path, list(overrides), registry)
 
 
@@ -241,6 +272,7 @@ def read_results(folder: str | os.PathLike[str]) -> Results:
     FileNotFoundError
         When ``folder`` holds neither ``summary.json`` nor ``series.csv``.
     """
+    _path_arg("read_results", "folder", folder)
     folder = Path(folder)
     if not ((folder / "summary.json").is_file() or (folder / "series.csv").is_file()):
         raise FileNotFoundError(f"{folder} is not a results folder: it has no summary.json or series.csv")
@@ -315,8 +347,9 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
 
     Raises
     ------
-    ValueError
-        ``checkpoint_every``, ``plots`` or ``force`` without ``out``.
+    ArgumentError
+        An argument of the wrong type or value (a path where a Case is expected, ``checkpoint_every`` not a
+        whole number ≥ 0, ...), or ``checkpoint_every``, ``plots`` or ``force`` without ``out``.
     multilayer.results.folder.ResultsError
         When ``out`` cannot be used (not writable, held by another run).
 
@@ -329,8 +362,17 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     >>> res.status, len(res.t), res.max_relative_residual < 1e-12
     ('ok', 50, True)
     """
+    _case_arg("run", case)
+    _path_arg("run", "out", out, optional=True)
+    if isinstance(checkpoint_every, bool) or not isinstance(checkpoint_every, int) or checkpoint_every < 0:
+        raise ArgumentError(f"run(checkpoint_every=...): expected a whole number ≥ 0 (steps), got {checkpoint_every!r}")
+    for name, value in (("plots", plots), ("force", force)):
+        if not isinstance(value, bool):
+            raise ArgumentError(f"run({name}=...): expected True or False, got {value!r}")
+    if not (progress is None or isinstance(progress, bool) or callable(progress)):
+        raise ArgumentError(f"run(progress=...): expected True, False, None or a callable, got {progress!r}")
     if out is None and (checkpoint_every or plots or force):
-        raise ValueError("checkpoints, figures and force need a results folder: give run(case, out=...)")
+        raise ArgumentError("checkpoints, figures and force need a results folder: give run(case, out=...)")
     registry = registry or Registry.load()
     bar = None
     callback: Callable[[Tally, dict], None] | None = None
@@ -392,6 +434,7 @@ def steps(case: Case, *, registry: Registry | None = None) -> Generator[Step, No
     >>> step.n, round(step.t, 5), step.ledger["energy.relative_residual"] < 1e-12
     (235, 0.0047, True)
     """
+    _case_arg("steps", case)
     registry = registry or Registry.load()
     with blas_threads(case.threads):
         with setting_up():

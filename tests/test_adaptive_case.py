@@ -28,6 +28,7 @@ def problems(*sets: str) -> list[str]:
     (("time.tolerance=1e-3", "time.memory=0"), "time.memory", "> 0.0"),
     (("time.tolerance=1e-3", "time.memory=-0.02"), "time.memory", "> 0.0"),
     (("time.memory=0.02",), "time.memory", "read only with adaptive steps"),
+    (("time.tolerance=1e-3", "time.output_interval=1e-300"), "time.output_interval", "at least the smallest step"),
     (("time.tolerance=1e-3", 'time.control="per_step"'), "time.control", "per-step"),
     (('time.control="per-step"',), "time.control", "read only with adaptive steps"),
 ])

@@ -53,8 +53,8 @@ def test_the_package_exports_the_api_and_its_version():
     from multilayer.version import __version__
 
     assert ml.__version__ == __version__
-    assert set(ml.__all__) == {"Case", "CaseError", "Results", "RunFailed", "Step", "__version__", "load_case",
-                               "read_results", "run", "steps"}
+    assert set(ml.__all__) == {"ArgumentError", "Case", "CaseError", "Results", "RunFailed", "Step", "__version__",
+                               "load_case", "read_results", "run", "steps"}
     for name in ml.__all__:
         assert getattr(ml, name) is (getattr(api, name) if name != "__version__" else __version__)
 
@@ -275,3 +275,27 @@ def test_run_into_a_foreign_folder_needs_force(tmp_path):
     assert res.ok and (folder / "notes.txt").read_text() == "my notes"
     with pytest.raises(ValueError, match="need a results folder"):
         ml.run(case, force=True)
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda ml, case: ml.run(str(CASES / "membrane-mode.toml")), "run(case=...): expected a Case, got the path"),
+    (lambda ml, case: ml.run(case, checkpoint_every="5"), "run(checkpoint_every=...): expected a whole number"),
+    (lambda ml, case: ml.run(case, checkpoint_every=-1), "run(checkpoint_every=...)"),
+    (lambda ml, case: ml.run(case, out=3), "run(out=...): expected a path"),
+    (lambda ml, case: ml.run(case, plots="yes"), "run(plots=...): expected True or False"),
+    (lambda ml, case: ml.run(case, progress=3), "run(progress=...)"),
+    (lambda ml, case: ml.load_case(CASES / "membrane-mode.toml", 5), "load_case(overrides=...)"),
+    (lambda ml, case: ml.load_case(CASES / "membrane-mode.toml", [5]), "load_case(overrides=...)"),
+    (lambda ml, case: ml.load_case(7), "load_case(path=...): expected a path"),
+    (lambda ml, case: ml.read_results(3), "read_results(folder=...): expected a path"),
+    (lambda ml, case: next(ml.steps("case.toml")), "steps(case=...): expected a Case, got the path"),
+])
+def test_the_api_names_a_wrong_argument_instead_of_failing_inside(call, words):
+    """Issue 36: a wrong type or value gets a multilayer error naming the argument and what was expected."""
+    import multilayer as ml
+
+    case = ml.load_case(CASES / "membrane-mode.toml", {"time.end": 0.001, "mesh.nz": 16})
+    with pytest.raises(ml.ArgumentError) as info:
+        call(ml, case)
+    assert words in str(info.value)
+    assert isinstance(info.value, TypeError) and isinstance(info.value, ValueError)  # either except clause catches it

@@ -253,3 +253,18 @@ def test_a_hand_edited_checkpoint_with_its_digest_recomputed_is_refused(good, tm
         data[key].flat[0] = np.nan
     rewrite(out, document, data)
     refused(out, capsys, *words.split("|"))
+
+
+@pytest.mark.parametrize("kind, words", [("deep", "nested deeper"), ("huge", "MiB, more than a checkpoint's")])
+def test_a_checkpoint_document_too_deep_or_too_large_ends_in_one_line(good, tmp_path, capsys, kind, words):
+    out = copy(good, tmp_path / kind)
+    if kind == "deep":
+        nested = "0"
+        for _ in range(5000):
+            nested = f"[{nested}]"
+        text = (out / checkpoint.FILE).read_text()
+        (out / checkpoint.FILE).write_text(text[:-1] + f', "deep": {nested}}}')
+    else:  # a sparse file: its size is read, never its content
+        with open(out / checkpoint.FILE, "r+b") as f:
+            f.truncate(checkpoint.MAX_DOCUMENT + 1)
+    refused(out, capsys, words)

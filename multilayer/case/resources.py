@@ -34,6 +34,7 @@ from typing import Any
 
 import attrs
 
+from multilayer.case.model import DT_MIN_FRACTION
 from multilayer.case.schema import ADAPTIVE_KEYS, MAX_STEPS, STEPS_TOL
 from multilayer.plugin.problems import Problem
 
@@ -172,6 +173,10 @@ def adaptive_problems(time: Mapping[str, float]) -> list[Problem]:
     if lo is not None and not time["end"] / lo <= MAX_STEPS:
         return [Problem("time.dt_min", lo, f"{time['end'] / lo:.3g} steps of it to time.end = "
                         f"{time['end']:g}; expected at most {MAX_STEPS:.0e}", "set a larger time.dt_min")]
+    interval, smallest = time.get("output_interval"), lo if lo is not None else dt * DT_MIN_FRACTION
+    if interval is not None and interval < smallest:  # the steps land on its multiples: none may be that short
+        return [Problem("time.output_interval", interval, f"expected at least the smallest step, "
+                        f"time.dt_min = {smallest:g} s (the steps land on its multiples)")]
     return []
 
 

@@ -56,6 +56,8 @@ FILE = "checkpoint.json"  #: the checkpoint's entry point (the arrays are in :da
 ARRAYS = "checkpoint.npz"
 LEGACY = "checkpoint.pkl"  #: what versions before 2 wrote: a pickle, never read
 MAGIC = "multilayer-checkpoint"
+#: the largest ``checkpoint.json`` read (bytes): the case, the plugins and the structure, never an array
+MAX_DOCUMENT = 64 * 2**20
 FORMAT = 3  #: the format version: a newer one is refused (3: the owning run's identity)
 #: the dtypes an array of a checkpoint may have
 DTYPES = ("b", "i", "u", "f", "c")
@@ -327,9 +329,15 @@ def _read(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
                                   f"--checkpoint-every N to be able to resume")
         raise CheckpointError(f"{folder} has no {FILE}: run with --checkpoint-every N to be able to resume")
     try:
+        size = path.stat().st_size
+        if size > MAX_DOCUMENT:  # the arrays are in the npz: the document is the case and the structure
+            raise CheckpointError(f"{path} is {size / 2**20:.0f} MiB, more than a checkpoint's document ever is "
+                                  f"({MAX_DOCUMENT // 2**20} MiB: its arrays are in {ARRAYS}): not read")
         document = json.loads(path.read_bytes().decode("ascii"), parse_constant=_not_json)
     except (OSError, ValueError) as exc:
         raise CheckpointError(f"{path} cannot be read (not JSON: {exc})") from None
+    except RecursionError:
+        raise CheckpointError(f"{path} is nested deeper than a checkpoint ever is: not read") from None
     if not isinstance(document, dict) or document.get("format") != MAGIC:
         raise CheckpointError(f"{path} is not a multilayer checkpoint")
     version = document.get("version")
@@ -403,6 +411,8 @@ def load(folder: Path, registry: Registry, until: float | None = None) -> Checkp
         _counters_agree(state, tally)
     except (ValueError, TypeError) as exc:
         raise CheckpointError(f"{path} is malformed: {exc}") from None
+    except RecursionError:
+        raise CheckpointError(f"{path} is nested deeper than a checkpoint ever is: not read") from None
     owner = run_identity(folder)
     if document["run"] is None or document["run"] != owner:
         raise CheckpointError(f"{path} belongs to another run than the one whose results are in {folder} "
