@@ -354,3 +354,18 @@ def test_read_results_reads_only_the_runs_own_snapshots(tmp_path, entry):
     (out / "wall.pvd").write_text(pvd.replace(first, str(outside) if entry == "ABSOLUTE" else entry, 1))
     with pytest.raises(ResultsError, match="not a snapshot wall_<step>.vtu of the run in its folder"):
         ml.read_results(out)
+
+
+@pytest.mark.parametrize("kind", ["link-loop", "long-name"])
+def test_an_out_the_system_cannot_follow_or_name_ends_in_one_line(tmp_path, capsys, kind):
+    if kind == "link-loop":
+        out = tmp_path / "a"
+        out.symlink_to(tmp_path / "b")
+        (tmp_path / "b").symlink_to(out)
+        words = "loop"
+    else:
+        out = tmp_path / ("x" * 300)
+        words = "too long"
+    assert main(argv(out)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot be used as a results folder" in err and words in err, err

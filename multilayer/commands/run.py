@@ -93,7 +93,11 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
     (unless ``no_plots``), then the summary.  ``force``: a run may write into
     a folder it refuses by default (:class:`~multilayer.results.folder.ResultsFolder`).
     """
-    if out.exists() and not out.is_dir():
+    try:
+        is_file = out.exists() and not out.is_dir()
+    except (OSError, RuntimeError):  # a name too long, a link loop: the results folder refuses it, saying why
+        is_file = False
+    if is_file:
         print(f"--out {out} is a file, not a folder", file=sys.stderr)
         return INVALID
     t0 = time.perf_counter()

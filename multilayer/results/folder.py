@@ -201,13 +201,19 @@ class ResultsFolder:
         if isinstance(out, str) and not out.strip():
             raise ResultsError("--out is empty: name the results folder")
         self.path = Path(out)
-        if fresh and not force and (why := dangerous(self.path)):
-            raise ResultsError(f"--out {out} {why}: choose a folder of its own (or --force)")
-        if self.path.exists() and not self.path.is_dir():
-            raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
-        if fresh and not force and self.path.is_dir() and _foreign(self.path):
-            raise ResultsError(_not_ours(self.path))
-        created = not self.path.exists()
+        try:  # a path the system cannot follow (a link loop) or name (too long) is refused as such
+            if fresh and not force and (why := dangerous(self.path)):
+                raise ResultsError(f"--out {out} {why}: choose a folder of its own (or --force)")
+            if self.path.exists() and not self.path.is_dir():
+                raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
+            if fresh and not force and self.path.is_dir() and _foreign(self.path):
+                raise ResultsError(_not_ours(self.path))
+            created = not self.path.exists()
+        except (RuntimeError, OSError) as exc:
+            if isinstance(exc, NotADirectoryError) and str(exc).startswith("--out"):
+                raise
+            raise ResultsError(f"--out {str(out)[:80]}{'…' if len(str(out)) > 80 else ''} cannot be used as a "
+                               f"results folder: {getattr(exc, 'strerror', None) or exc}") from None
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
