@@ -12,7 +12,7 @@ t = 0.0575 s (Δt = 5e-4), with the Koiter shell alone at its first step.
 
 import numpy as np
 import pytest
-from runs import assert_resume_is_bit_identical
+from runs import CASES, assert_resume_is_bit_identical
 
 from multilayer.api import load_case, run
 from multilayer.coupling.kit import domain_velocity
@@ -21,66 +21,23 @@ from multilayer.scene.state import State
 
 CN = SCHEMES["crank-nicolson"]
 
-# a carotid-like tube (R = 0.3 cm, an intima of ρ₁h = 5.3e-3 g/cm² as a Koiter shell on two bands), coarse
-TUBE = """
-[geometry]
-kind = "axisymmetric"
-length = 6.0
-radius = 0.3
-[mesh]
-nz = 20
-nr = 3
-order = 2
-[time]
-end = 0.08
-dt = 5e-4
-[fluid]
-model = "stokes"
-density = 1.06
-viscosity = 0.035
-[[layers]]
-model = "koiter-shell"
-density = 1.06
-thickness = 0.005
-young = 2.0e6
-poisson = 0.45
-{bands}
-[coupler]
-model = "monolithic"
-scheme = "crank-nicolson"
-[loads]
-inlet = 1.0e4
-outlet = 0.0
-[solver]
-volume_margin = 0.01
-"""
-BANDS = """
-[[layers]]
-model = "linear-elastic"
-density = 1.1
-thickness = 0.05
-young = 4.0e6
-poisson = 0.45
-cells = 2
-[[layers]]
-model = "linear-elastic"
-density = 1.1
-thickness = 0.03
-young = 2.0e6
-poisson = 0.45
-cells = 1
-"""
+#: the bundled carotid-like tube (R = 0.3 cm, an intima of ρ₁h = 5.3e-3 g/cm² as a Koiter shell on two bands),
+#: coarse, as a Stokes fluid under a pressure step from rest into p = 0, monolithic Crank–Nicolson
+TUBE = {"mesh.nz": 20, "mesh.nr": 3, "time.end": 0.08, "time.dt": 5e-4,
+        "fluid": {"model": "stokes", "density": 1.06, "viscosity": 0.035},
+        "coupler": {"model": "monolithic", "scheme": "crank-nicolson"},
+        "loads.inlet": 1.0e4, "loads.outlet": 0.0, "initial": {}, "output": {}, "solver.volume_margin": 0.01}
+#: the intima alone, without the bands behind it
+KOITER_ALONE = [{"model": "koiter-shell", "density": 1.06, "thickness": 0.005, "young": 2.0e6, "poisson": 0.45}]
 
 
-def load_case_text(tmp_path, bands=BANDS, overrides=()):
-    """The tube with ``bands`` behind its Koiter shell, and ``overrides`` (a mapping, as :func:`load_case` takes)."""
-    path = tmp_path / "tube.toml"
-    path.write_text(TUBE.format(bands=bands))
-    return load_case(path, overrides)
+def load_tube(layers=None, overrides=()):
+    """The tube (its own three layers, or ``layers``), and ``overrides`` (a mapping, as :func:`load_case` takes)."""
+    return load_case(CASES / "carotid.toml", {**TUBE, **({"layers": layers} if layers else {}), **dict(overrides)})
 
 
-@pytest.mark.parametrize("bands, drift", [(BANDS, 1e-3), ("", 1e-2)], ids=["three-layers", "koiter-alone"])
-def test_a_pressure_step_into_a_carotid_like_tube_stays_within_the_work_put_in(tmp_path, bands, drift):
+@pytest.mark.parametrize("layers, drift", [(None, 1e-3), (KOITER_ALONE, 1e-2)], ids=["three-layers", "koiter-alone"])
+def test_a_pressure_step_into_a_carotid_like_tube_stays_within_the_work_put_in(layers, drift):
     """The run ends ok (default energy margin 1 %), the ledger closes, and the geometric remainder is
     Crank–Nicolson's own, small against the viscous dissipation.
 
@@ -90,7 +47,7 @@ def test_a_pressure_step_into_a_carotid_like_tube_stays_within_the_work_put_in(t
     The tube's volume balance holds to the scheme's order (theory §7): drift 7.4e-5 of the volume moved
     with three layers, 2.3e-3 with the Koiter shell alone (η up to 0.11 cm on R = 0.3 cm).
     """
-    result = run(load_case_text(tmp_path, bands))
+    result = run(load_tube(layers))
     assert result.status == "ok", result.reason
     s = result.series
     assert np.max(s["energy.relative_residual"]) <= 1e-9
@@ -143,7 +100,7 @@ def test_schemes_whose_test_level_is_the_new_level_extrapolate_the_velocity_leve
 
 
 @pytest.mark.parametrize("kind", ["planar", "axisymmetric"])
-def test_on_its_own_domains_the_geometric_remainder_is_crank_nicolsons_own(tmp_path, kind, monkeypatch):
+def test_on_its_own_domains_the_geometric_remainder_is_crank_nicolsons_own(kind, monkeypatch):
     """G = ⅛ρ∫(J̃^{n+1} − J̃ⁿ)|u^{n+1} − uⁿ|² + ½ρ∫ε(|u^{n+1}|² − |uⁿ|²), ε = ½(J̃ⁿ + J̃^{n+1}) − J_m, every step,
     to round-off (theory §5): nothing of a prediction's miss is left in it.  Measured: 3e-12 planar, 7e-12 in
     the tube, relative to the largest |G|."""
@@ -164,7 +121,7 @@ def test_on_its_own_domains_the_geometric_remainder_is_crank_nicolsons_own(tmp_p
         return terms
 
     monkeypatch.setattr(FluidStep, "identity", checked)
-    case = load_case_text(tmp_path, BANDS, {"time.end": 0.02, "geometry.kind": kind})
+    case = load_tube(overrides={"time.end": 0.02, "geometry.kind": kind})
     assert run(case).status == "ok"
     G, own = np.array(seen).T
     assert np.max(np.abs(G)) > 0.0
