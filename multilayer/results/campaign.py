@@ -19,8 +19,8 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from multilayer.results.files import ResultsError, open_nofollow, write_atomically
-from multilayer.results.folder import MANIFEST, dangerous
+from multilayer.results.files import ResultsError, write_atomically
+from multilayer.results.folder import MANIFEST, dangerous, read_manifest
 
 #: what a campaign folder's ``manifest.json`` says it is
 FORMAT = "multilayer campaign folder"
@@ -28,11 +28,7 @@ FORMAT = "multilayer campaign folder"
 
 def campaign_files(folder: Path) -> frozenset[str] | None:
     """The names of the files a campaign owns in ``folder`` (its manifest's list); None: not a campaign folder."""
-    try:
-        with open_nofollow(folder / MANIFEST, os.O_RDONLY, "r") as f:
-            manifest = json.load(f)
-    except (OSError, ValueError, ResultsError):
-        return None
+    manifest = read_manifest(folder)
     if isinstance(manifest, dict) and manifest.get("format") == FORMAT and isinstance(manifest.get("files"), list):
         return frozenset(str(name) for name in manifest["files"])
     return None

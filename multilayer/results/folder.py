@@ -58,8 +58,7 @@ FIXED = ("summary.json", "series.csv", "eta_lumen.csv", "checkpoint.json", "chec
          "wall.pvd", "fluid.pvd", *FIGURES)
 #: a temporary of this module: ``.<name>.<8 hex digits>.tmp``
 _TEMP = re.compile(r"\.(.+)\.[0-9a-f]{8}\.tmp")
-#: a snapshot a run writes: ``<part>_<step>.vtu``
-SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
+_SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
 
 
 def _jsonable(value: Any) -> Any:
@@ -83,11 +82,7 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     snapshots of :attr:`ResultsFolder.PARTS`, as that version wrote them.
     """
     folder = Path(folder)
-    try:
-        with open_nofollow(folder / MANIFEST, os.O_RDONLY, "r") as f:
-            manifest = json.load(f)
-    except (OSError, ValueError, ResultsError):
-        manifest = None
+    manifest = read_manifest(folder)
     if isinstance(manifest, dict) and manifest.get("format") == FORMAT and isinstance(manifest.get("files"), list):
         listed = manifest["files"]
         strangers = [name for name in listed if not _written_by_a_run(name)]
@@ -108,28 +103,36 @@ def owned_files(folder: Path | str) -> frozenset[str] | None:
     if not isinstance(summary, dict) or not ({"case_hash", "multilayer_version"} & summary.keys()
                                              or summary.keys() == {"status", "pid"}):
         return None
-    snapshots = {name for name in _names(folder) if (m := SNAPSHOT.fullmatch(name))
-                 and m[1] in ResultsFolder.PARTS}
+    snapshots = {name for name in _names(folder) if snapshot_of(name)}
     return frozenset({*FIXED, *snapshots})
+
+
+def read_manifest(folder: Path | str) -> Any:
+    """``folder``'s ``manifest.json`` as parsed JSON (never read through a link); None when it cannot be read."""
+    try:
+        with open_nofollow(Path(folder) / MANIFEST, os.O_RDONLY, "r") as f:
+            return json.load(f)
+    except (OSError, ValueError, RecursionError, ResultsError):
+        return None
 
 
 def run_identity(folder: Path | str) -> str | None:
     """The identity of the run that owns ``folder`` (its manifest's ``run``); None when it records none."""
-    try:
-        with open_nofollow(Path(folder) / MANIFEST, os.O_RDONLY, "r") as f:
-            manifest = json.load(f)
-    except (OSError, ValueError, ResultsError):
-        return None
+    manifest = read_manifest(folder)
     run = manifest.get("run") if isinstance(manifest, dict) else None
     return run if isinstance(run, str) else None
 
 
+def snapshot_of(name: object) -> tuple[str, int] | None:
+    """(part, step) when ``name`` is a snapshot a run writes, ``<part>_<step>.vtu`` of a part of
+    :attr:`ResultsFolder.PARTS`; None for any other name."""
+    m = _SNAPSHOT.fullmatch(name) if isinstance(name, str) else None
+    return (m[1], int(m[2])) if m is not None and m[1] in ResultsFolder.PARTS else None
+
+
 def _written_by_a_run(name: object) -> bool:
     """True for a name a run of multilayer writes directly inside its folder: a fixed name or a snapshot."""
-    if not isinstance(name, str):
-        return False
-    m = SNAPSHOT.fullmatch(name)
-    return name in FIXED or name == MANIFEST or (m is not None and m[1] in ResultsFolder.PARTS)
+    return name in FIXED or name == MANIFEST or snapshot_of(name) is not None
 
 
 def may_write(folder: Path | str, name: str) -> bool:
@@ -201,19 +204,21 @@ class ResultsFolder:
         if isinstance(out, str) and not out.strip():
             raise ResultsError("--out is empty: name the results folder")
         self.path = Path(out)
+        checked = fresh and not force
         try:  # a path the system cannot follow (a link loop) or name (too long) is refused as such
-            if fresh and not force and (why := dangerous(self.path)):
-                raise ResultsError(f"--out {out} {why}: choose a folder of its own (or --force)")
-            if self.path.exists() and not self.path.is_dir():
-                raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
-            if fresh and not force and self.path.is_dir() and _foreign(self.path):
-                raise ResultsError(_not_ours(self.path))
-            created = not self.path.exists()
+            why = dangerous(self.path) if checked else ""
+            exists, is_dir = self.path.exists(), self.path.is_dir()
+            foreign = checked and is_dir and _foreign(self.path)
         except (RuntimeError, OSError) as exc:
-            if isinstance(exc, NotADirectoryError) and str(exc).startswith("--out"):
-                raise
             raise ResultsError(f"--out {str(out)[:80]}{'…' if len(str(out)) > 80 else ''} cannot be used as a "
                                f"results folder: {getattr(exc, 'strerror', None) or exc}") from None
+        if why:
+            raise ResultsError(f"--out {out} {why}: choose a folder of its own (or --force)")
+        if exists and not is_dir:
+            raise NotADirectoryError(f"--out {self.path} is a file, not a folder")
+        if foreign:
+            raise ResultsError(_not_ours(self.path))
+        created = not exists
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -265,7 +270,7 @@ class ResultsFolder:
                                f"{self.path} is not a results folder of multilayer (no {MANIFEST}): cannot resume")
         previous = set(previous or ())
         names = _names(self.path)
-        wanted = {MANIFEST, *FIXED} | {n for n in names if (m := SNAPSHOT.fullmatch(n)) and m[1] in self.PARTS}
+        wanted = {MANIFEST, *FIXED} | {n for n in names if snapshot_of(n)}
         clash = sorted(n for n in names if n in wanted and n not in previous)
         if clash:
             raise ResultsError(f"{self.path} holds {', '.join(clash[:3])}{' …' if len(clash) > 3 else ''} that no "
@@ -351,8 +356,7 @@ class ResultsFolder:
 
     def keep_until(self, step: int, snapshots: Mapping[str, Sequence[tuple[float, str]]]) -> None:
         """Resuming after ``step``: drop the snapshots written later, restore the collections."""
-        later = [name for name in self._owned if (m := SNAPSHOT.fullmatch(name)) and m[1] in self.PARTS
-                 and int(m[2]) > step]
+        later = [name for name in self._owned if (snapshot := snapshot_of(name)) and snapshot[1] > step]
         for name in later:
             self._remove(name)
         if later:

@@ -15,7 +15,7 @@ import meshio
 import numpy as np
 
 from multilayer.results.files import ResultsError
-from multilayer.results.folder import SNAPSHOT
+from multilayer.results.folder import snapshot_of
 
 
 @attrs.frozen(eq=False)
@@ -116,8 +116,7 @@ def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarr
     for dataset in ET.parse(pvd).getroot().iter("DataSet"):
         name = dataset.get("file")
         # a collection is data: it may name only this part's snapshots, directly inside the folder
-        if not (isinstance(name, str) and (m := SNAPSHOT.fullmatch(name)) and m[1] == part
-                and not (folder / name).is_symlink()):
+        if not ((snapshot := snapshot_of(name)) and snapshot[0] == part and not (folder / name).is_symlink()):
             raise ResultsError(f"{pvd} names {name!r}, not a snapshot {part}_<step>.vtu of the run in its folder: "
                                "not read")
         mesh = meshio.read(folder / name)

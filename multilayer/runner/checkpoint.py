@@ -34,7 +34,6 @@ import hashlib
 import json
 import math
 import os
-import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -47,7 +46,7 @@ from multilayer.case.model import Case
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.files import atomic_file
-from multilayer.results.folder import run_identity
+from multilayer.results.folder import run_identity, snapshot_of
 from multilayer.runner.volume import VolumeLedger
 from multilayer.scene.state import State, WallState
 from multilayer.version import __version__
@@ -61,7 +60,6 @@ MAX_DOCUMENT = 64 * 2**20
 FORMAT = 3  #: the format version: a newer one is refused (3: the owning run's identity)
 #: the dtypes an array of a checkpoint may have
 DTYPES = ("b", "i", "u", "f", "c")
-_SNAPSHOT = re.compile(r"(wall|fluid)_[0-9]{6}\.vtu")
 
 
 class CheckpointError(Exception):
@@ -256,8 +254,7 @@ def _snapshots_from_data(data: Any) -> dict[str, list[tuple[float, str]]]:
             raise ValueError(f"the snapshots have a collection {name!r}, not wall or fluid")
         for entry in entries:
             if not (isinstance(entry, list) and len(entry) == 2 and isinstance(entry[0], float)
-                    and isinstance(entry[1], str) and _SNAPSHOT.fullmatch(entry[1])
-                    and entry[1].startswith(name + "_")):
+                    and (snapshot := snapshot_of(entry[1])) and snapshot[0] == name):
                 raise ValueError(f"the snapshots of {name} have an entry that is not (t, {name}_NNNNNN.vtu)")
         out[name] = [(t, file) for t, file in entries]
     return out
