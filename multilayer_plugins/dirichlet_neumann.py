@@ -41,6 +41,7 @@ from multilayer.coupling.kit import (
     axial_restriction,
     coupled_case_problems,
     external_force,
+    flow_rate_ends,
     fluid_columns,
     fluid_domain,
     fluid_groups,
@@ -49,7 +50,6 @@ from multilayer.coupling.kit import (
     window_loads,
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
-from multilayer.fluid.contract import ENDS
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
@@ -159,7 +159,7 @@ class DirichletNeumannExplicit(DirichletNeumann):
             "other end in one step (the incompressibility dilemma of Dirichlet–Neumann coupling; on the carotid-like "
             "tube the energy outgrew the work at the first step); choose 'dirichlet-neumann-implicit', "
             "'kinematic-splitting' or 'monolithic'"
-            for end in ENDS if getattr(case.loads, end).constraint]
+            for end in flow_rate_ends(case)]
 
 
 class DirichletNeumannImplicit(DirichletNeumann):

@@ -56,6 +56,7 @@ from multilayer.coupling.kit import (
     FLUID_ETA,
     coupled_case_problems,
     external_force,
+    flow_rate_ends,
     fluid_columns,
     fluid_domain,
     fluid_groups,
@@ -67,7 +68,7 @@ from multilayer.coupling.kit import (
     window_loads,
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
-from multilayer.fluid.contract import ENDS, Domain, Interface
+from multilayer.fluid.contract import Domain, Interface
 from multilayer.numerics.stepsize import local_error
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
@@ -121,7 +122,7 @@ class KinematicSplitting(Coupler):
             problems += [f"loads.{end} prescribes a flow rate, which {self.name} with robin = 'inertia' (the paper's "
                          f"scheme) does not conserve: {INERTIA_LEAK}; remove coupler.robin (the default "
                          "'impedance' conserves it), or choose 'monolithic'"
-                         for end in ENDS if getattr(case.loads, end).constraint]
+                         for end in flow_rate_ends(case)]
         return problems
 
     def initial_state(self, setup) -> State:

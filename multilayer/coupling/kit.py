@@ -11,7 +11,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.fluid.contract import Domain
+from multilayer.fluid.contract import ENDS, Domain
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.plugin.records import Param
 from multilayer.scene.setup import Setup
@@ -44,6 +44,11 @@ def coupled_case_problems(name: str, case) -> list[str]:
         problems.append(f"loads.wall_motion prescribes the wall, which {name} computes: "
                         "remove it, or choose the coupler 'fluid-only' without [[layers]]")
     return problems
+
+
+def flow_rate_ends(case) -> list[str]:
+    """The open ends of ``case`` whose condition prescribes the flux (a flow rate), in :data:`ENDS` order."""
+    return [end for end in ENDS if getattr(case.loads, end).constraint]
 
 
 def thin_lumen_problems(name: str, case, why: str) -> list[str]:
