@@ -60,6 +60,7 @@ from multilayer.coupling.kit import (
     fluid_columns,
     fluid_domain,
     fluid_groups,
+    joint_report,
     lumen_layers,
     lumen_mass,
     quadratic,
@@ -230,12 +231,8 @@ class KinematicSplitting(Coupler):
         fluid's side; V̄_Γ = v̄, so the two leave the ledger together, as in a
         monolithic step (what is left of them is the residual's).
         """
-        stored_f, work_f, dissipation_f = fluid_groups(f)
-        work = {k: w for k, w in wall_step.work.items() if k != "work.fluid"}
-        return StepReport({**wall_step.stored, **stored_f}, {**work, **work_f},
-                          {**wall_step.dissipation, **dissipation_f},
-                          {"energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"]),
-                           **fluid_columns(f)})
+        return joint_report(wall_step, f, cancelled=("work.fluid",),
+                            diagnostics={"energy.relative_residual.A2": relative(f["a2.residual"], f["a2.scale"])})
 
     @staticmethod
     def estimate(state: State, w: Window, d_new: np.ndarray, P, R, rate: np.ndarray) -> dict[str, np.ndarray]:

@@ -43,9 +43,8 @@ from multilayer.coupling.kit import (
     axial_restriction,
     coupled_case_problems,
     external_force,
-    fluid_columns,
     fluid_domain,
-    fluid_groups,
+    joint_report,
     lumen_param,
     predicted_domain,
     window_loads,
@@ -136,9 +135,7 @@ class Monolithic(ThickLumen, Coupler):
             terms = fluid.identity(system, solution, *prediction.identity_levels(state, eta_new, axial))
             new = state.then(S.old_levels, n=w.n + 1, t=t1, wall=wstep.wall, fluid=solution.state,
                              v=fluid.wall_velocity(solution.state), eta=eta_new, extra=extra)
-            stored_f, work_f, dissipation_f = fluid_groups(terms)
-            return new, StepReport({**wstep.stored, **stored_f}, {**wstep.work, **work_f},
-                                   {**wstep.dissipation, **dissipation_f}, fluid_columns(terms))
+            return new, joint_report(wstep, terms)
 
         return march(setup, self.scheme, state, advance)
 

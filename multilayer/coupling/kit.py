@@ -11,6 +11,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from multilayer.coupling.contract import StepReport
 from multilayer.fluid.contract import ENDS, Domain
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.plugin.records import Param
@@ -150,6 +151,19 @@ def fluid_groups(terms: Mapping[str, float], numerical: bool = True) -> tuple[di
     dissipation = {k: terms[k] for k in keys}
     dissipation.update({k: v for k, v in terms.items() if k.startswith("dissipation.") and k not in own})
     return stored, work, dissipation
+
+
+def joint_report(wall_step, terms: Mapping[str, float], cancelled: Sequence[str] = (),
+                 diagnostics: Mapping[str, float] | None = None) -> StepReport:
+    """The ledger of a step whose wall moves with the fluid's trace: the wall's identity plus the fluid's.
+
+    ``cancelled`` names the wall's work terms that are the fluid's own force, which the fluid's interface power
+    cancels (left out of both); ``diagnostics`` are added to the fluid's columns.
+    """
+    stored_f, work_f, dissipation_f = fluid_groups(terms)
+    work = {k: w for k, w in wall_step.work.items() if k not in cancelled}
+    return StepReport({**wall_step.stored, **stored_f}, {**work, **work_f}, {**wall_step.dissipation, **dissipation_f},
+                      {**(diagnostics or {}), **fluid_columns(terms)})
 
 
 def fluid_columns(terms: Mapping[str, float]) -> dict[str, float]:
