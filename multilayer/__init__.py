@@ -20,6 +20,7 @@ __all__ = [
     "Case",
     "CaseError",
     "Results",
+    "ResultsError",
     "RunFailed",
     "Step",
     "__version__",

@@ -35,13 +35,14 @@ from multilayer.coupling.contract import SchemeFailure
 from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
+from multilayer.results.files import ResultsError
 from multilayer.results.reading import lumen_eta, read_run
 from multilayer.runner.held import HeldResults
 from multilayer.runner.loop import run_case, run_held
 from multilayer.runner.stepping import RunFailed, Step, Tally, iterate_steps, setting_up
 
-__all__ = ["ArgumentError", "Case", "CaseError", "Results", "RunFailed", "Step", "load_case", "read_results", "run",
-           "steps"]
+__all__ = ["ArgumentError", "Case", "CaseError", "Results", "ResultsError", "RunFailed", "Step", "load_case",
+           "read_results", "run", "steps"]
 
 
 class ArgumentError(TypeError, ValueError):
@@ -245,9 +246,8 @@ class Results:
     @property
     def peaks(self) -> dict[str, float]:
         """max |η| of every ``eta`` probe (cm), the peaks ``multilayer run`` prints (in µm)."""
-        probes = ((self.summary.get("case") or {}).get("output") or {}).get("probes", [])
         out = {}
-        for p in probes:
+        for p in _probes(self.summary):
             if p.get("quantity") == "eta" and p["name"] in self.series:
                 values = np.abs(self.series[p["name"]])
                 values = values[~np.isnan(values)]
@@ -271,20 +271,34 @@ def read_results(folder: str | os.PathLike[str]) -> Results:
     ------
     FileNotFoundError
         When ``folder`` holds neither ``summary.json`` nor ``series.csv``.
+    ResultsError
+        A file of the folder cannot be read: larger than a run ever writes, not JSON, not numbers, a
+        snapshot outside the folder (the message names the file).  A run still writing the folder, or
+        killed while it did, reads as far as its last whole row.
     """
     _path_arg("read_results", "folder", folder)
     folder = Path(folder)
     if not ((folder / "summary.json").is_file() or (folder / "series.csv").is_file()):
         raise FileNotFoundError(f"{folder} is not a results folder: it has no summary.json or series.csv")
     data = read_run(folder.name, folder)
-    radius = ((data.summary.get("case") or {}).get("geometry") or {}).get("radius")
-    eta = lumen_eta(folder, radius) if radius else None
+    geometry = data.case.get("geometry")
+    radius = geometry.get("radius") if isinstance(geometry, dict) else None
+    eta = lumen_eta(folder, float(radius)) if isinstance(radius, int | float) and radius > 0 else None
     return _results(dict(data.summary), dict(data.series), eta, folder)
+
+
+def _probes(summary: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The probes of the summary's resolved case (those with a name: a folder's summary is data)."""
+    case = summary.get("case")
+    output = case.get("output") if isinstance(case, dict) else None
+    probes = output.get("probes") if isinstance(output, dict) else None
+    return [p for p in probes if isinstance(p, dict) and isinstance(p.get("name"), str)] \
+        if isinstance(probes, list) else []
 
 
 def _results(summary: dict[str, Any], series: dict[str, np.ndarray], eta: LumenField | None,
              folder: Path | None) -> Results:
-    names = [p["name"] for p in ((summary.get("case") or {}).get("output") or {}).get("probes", [])]
+    names = [p["name"] for p in _probes(summary)]
     return Results(summary, series, {n: series[n] for n in names if n in series}, eta, folder)
 
 
@@ -350,7 +364,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     ArgumentError
         An argument of the wrong type or value (a path where a Case is expected, ``checkpoint_every`` not a
         whole number ≥ 0, ...), or ``checkpoint_every``, ``plots`` or ``force`` without ``out``.
-    multilayer.results.folder.ResultsError
+    ResultsError
         When ``out`` cannot be used (not writable, held by another run).
 
     Examples

@@ -53,8 +53,8 @@ def test_the_package_exports_the_api_and_its_version():
     from multilayer.version import __version__
 
     assert ml.__version__ == __version__
-    assert set(ml.__all__) == {"ArgumentError", "Case", "CaseError", "Results", "RunFailed", "Step", "__version__",
-                               "load_case", "read_results", "run", "steps"}
+    assert set(ml.__all__) == {"ArgumentError", "Case", "CaseError", "Results", "ResultsError", "RunFailed", "Step",
+                               "__version__", "load_case", "read_results", "run", "steps"}
     for name in ml.__all__:
         assert getattr(ml, name) is (getattr(api, name) if name != "__version__" else __version__)
 

@@ -3,6 +3,7 @@
 Each refusal is ``multilayer resume`` exiting 2 with a one-line message and no traceback.
 """
 
+import io
 import json
 import os
 import pickle
@@ -267,4 +268,30 @@ def test_a_checkpoint_document_too_deep_or_too_large_ends_in_one_line(good, tmp_
     else:  # a sparse file: its size is read, never its content
         with open(out / checkpoint.FILE, "r+b") as f:
             f.truncate(checkpoint.MAX_DOCUMENT + 1)
+    refused(out, capsys, words)
+
+
+@pytest.mark.parametrize("kind, words", [("compressed", "is compressed"), ("claims", "claims"),
+                                         ("huge", "more than a checkpoint's arrays")])
+def test_arrays_that_would_take_more_memory_than_their_file_are_refused_before_reading(good, tmp_path, capsys,
+                                                                                        kind, words):
+    """Issue 36: readers bound every size they read; an npz is read only as large as it is on disk."""
+    out = copy(good, tmp_path / kind)
+    data = arrays(out)
+    if kind == "compressed":  # a member that inflates (a zip bomb is one of these)
+        with open(out / checkpoint.ARRAYS, "wb") as f:
+            np.savez_compressed(f, **data)
+    elif kind == "claims":  # a header that claims a shape of 2⁴⁰ over the bytes of a small array
+        name = max(data, key=lambda k: data[k].size)
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (2**40,)})
+        with zipfile.ZipFile(out / checkpoint.ARRAYS, "w") as archive:  # stored, as np.savez writes
+            for key, value in data.items():
+                member = io.BytesIO()
+                np.lib.format.write_array(member, value)
+                raw = header.getvalue() + data[name].tobytes() if key == name else member.getvalue()
+                archive.writestr(f"{key}.npy", raw)
+    else:  # a sparse file: its size is read, never its content
+        with open(out / checkpoint.ARRAYS, "r+b") as f:
+            f.truncate(checkpoint.MAX_ARRAYS + 1)
     refused(out, capsys, words)

@@ -3,12 +3,14 @@ held by one run at a time (an atomic lock)."""
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from multilayer.commands.main import main
@@ -369,3 +371,96 @@ def test_an_out_the_system_cannot_follow_or_name_ends_in_one_line(tmp_path, caps
     assert main(argv(out)) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "cannot be used as a results folder" in err and words in err, err
+
+
+@pytest.mark.parametrize("entry", ["../outside.txt", "ABSOLUTE", "sub/keep.csv", ".hidden.json", "notes.txt", None])
+def test_a_campaign_manifest_naming_what_a_campaign_never_writes_is_refused_and_nothing_is_touched(
+        tmp_path, capsys, entry):
+    """Issue 36: a campaign folder's manifest is data too; only report files directly inside are taken from it."""
+    outside = tmp_path / "outside.txt"
+    outside.write_bytes(b"a user's file beside the folder\n")
+    out = tmp_path / "campaign"
+    assert main([*CAMPAIGN, "--out", str(out)]) == 0
+    user_files(out)
+    manifest = json.loads((out / MANIFEST).read_text())
+    manifest["files"].append(str(outside) if entry == "ABSOLUTE" else entry)
+    (out / MANIFEST).write_text(json.dumps(manifest))
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    assert main([*CAMPAIGN, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a report a campaign of multilayer writes" in err, err
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def test_a_campaigns_run_folder_that_is_a_link_or_a_report_that_is_a_folder_is_refused(tmp_path, capsys):
+    """A shared campaign folder whose run folder links to another results folder would make the campaign
+    rerun (and so empty) that folder; a report replaced by a folder is refused before anything is written."""
+    out = tmp_path / "campaign"
+    assert main([*CAMPAIGN, "--out", str(out)]) == 0
+    elsewhere = tmp_path / "precious-run"
+    (out / "dt=1e-5").rename(elsewhere)
+    (out / "dt=1e-5").symlink_to(elsewhere)
+    before = {p: p.read_bytes() for p in elsewhere.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    assert main([*CAMPAIGN, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "dt=1e-5 is a link" in err, err
+    assert {p: p.read_bytes() for p in elsewhere.rglob("*") if p.is_file()} == before
+    (out / "dt=1e-5").unlink()
+    (out / "report.md").unlink()
+    (out / "report.md").mkdir()
+    assert main([*CAMPAIGN, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "report.md is not a file" in err and not (out / "dt=1e-5").exists(), err
+
+
+def test_a_run_manifest_naming_a_folder_of_a_run_files_name_is_refused_before_anything_is_removed(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(argv(out)) == 0
+    (out / "series.csv").unlink()
+    (out / "series.csv").mkdir()
+    before = sorted(p.name for p in out.iterdir())
+    capsys.readouterr()
+    assert main(argv(out)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "series.csv is a folder" in err, err
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+def _cut(path: Path, n: int) -> None:
+    path.write_bytes(path.read_bytes()[:-n])
+
+
+@pytest.mark.parametrize("damage, words", [
+    (lambda out: _cut(out / "series.csv", 3), None),  # a row being written: read up to the last whole one
+    (lambda out: (out / "summary.json").write_text('{"status": "running", "pid": 1}'), None),  # a run going on
+    (lambda out: (out / "summary.json").write_text('{"status": "ok", "ca'), "summary.json cannot be read"),
+    (lambda out: (out / "summary.json").write_text("[" * 100_000 + "]" * 100_000), "nested deeper"),
+    (lambda out: (out / "summary.json").write_text('{"case": 3}'), "case is a JSON int"),
+    (lambda out: (out / "summary.json").write_text("[1, 2]"), "not a summary of a run"),
+    (lambda out: (out / "series.csv").write_bytes(b"t,a\n1,2\n3,x\n4,5\n"), "line 3, column 'a': 'x' is not a number"),
+    (lambda out: (out / "series.csv").write_bytes(b"\xff\xfe\x00t\n"), "not text"),
+    (lambda out: (out / "eta_lumen.csv").write_bytes(b"t,z=x\n1,2\n"), "'z=x', not z=<position>"),
+    (lambda out: open(out / "series.csv", "r+b").truncate(2**30 + 1), "more than a table of a run ever is"),
+    (lambda out: ((out / "eta_lumen.csv").unlink(), _cut(out / "wall.pvd", 40)), "wall.pvd cannot be read"),
+    (lambda out: ((out / "eta_lumen.csv").unlink(), _cut(out / "wall_000005.vtu", 400)),
+     "wall_000005.vtu cannot be read as a snapshot"),
+], ids=["row-being-written", "running", "summary-cut", "summary-deep", "summary-kinds", "summary-list",
+        "not-a-number", "not-text", "eta-header", "table-huge", "pvd-cut", "snapshot-cut"])
+def test_read_results_on_a_half_written_or_damaged_folder_reads_what_is_whole_or_says_which_file(
+        tmp_path, damage, words):
+    """Issue 36: a folder a run is writing (or was killed writing) reads as far as it is whole; a damaged or
+    crafted one ends in one ResultsError naming the file, never a traceback from inside a parser."""
+    import multilayer as ml
+
+    out = tmp_path / "run"
+    assert main(argv(out, plots=True)) == 0
+    whole = ml.read_results(out)
+    damage(out)
+    if words is None:
+        res = ml.read_results(out)
+        assert 0 < len(res.t) <= len(whole.t) and np.array_equal(res.t, whole.t[:len(res.t)])
+        return
+    with pytest.raises(ml.ResultsError, match=re.escape(words)):
+        ml.read_results(out)

@@ -80,7 +80,8 @@ def compare(options: CompareOptions) -> int:
         return INVALID
     out = options.out
     try:
-        open_campaign(out, ("report.json", "report.md", "probes.png", "eta_spacetime.png"), options.force)
+        open_campaign(out, ("report.json", "report.md", "probes.png", "eta_spacetime.png"), options.force,
+                      runs=[v.label for v, _ in loaded])
     except ResultsError as exc:
         print(f"compare: {exc}", file=sys.stderr)
         return INVALID

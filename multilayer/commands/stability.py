@@ -115,7 +115,8 @@ def stability(options: StabilityOptions) -> int:
         print(invalid_message("stability", variants, wrong, "runs"), file=sys.stderr)
         return INVALID
     try:
-        open_campaign(o.out, ("stability.json", "stability.md", "stability.png"), o.force)
+        open_campaign(o.out, ("stability.json", "stability.md", "stability.png"), o.force,
+                      runs=[p.folder for p in planned])
     except ResultsError as exc:
         print(f"stability: {exc}", file=sys.stderr)
         return INVALID

@@ -114,7 +114,8 @@ def study(options: StudyOptions) -> int:
         print(invalid_message("study", variants, wrong, "runs"), file=sys.stderr)
         return INVALID
     try:
-        open_campaign(o.out, ("study.json", "study.md", "pareto.png", "orders.png", "tolerance.png"), o.force)
+        open_campaign(o.out, ("study.json", "study.md", "pareto.png", "orders.png", "tolerance.png"), o.force,
+                      runs=[p.folder for p in planned] + ([REFERENCE] if reference is not None else []))
     except ResultsError as exc:
         print(f"study: {exc}", file=sys.stderr)
         return INVALID

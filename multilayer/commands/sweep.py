@@ -107,7 +107,8 @@ def sweep(options: SweepOptions) -> int:
         return INVALID
     keys = list(dict.fromkeys(k for r in runs for k, _ in r.values))
     try:
-        open_campaign(o.out, ("plan.json", "sweep.csv", "sweep.md", *(figure_name(k) for k in keys)), o.force)
+        open_campaign(o.out, ("plan.json", "sweep.csv", "sweep.md", *(figure_name(k) for k in keys)), o.force,
+                      runs=[r.folder for r in runs])
     except ResultsError as exc:
         print(f"sweep: {exc}", file=sys.stderr)
         return INVALID

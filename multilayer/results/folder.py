@@ -275,6 +275,10 @@ class ResultsFolder:
         if clash:
             raise ResultsError(f"{self.path} holds {', '.join(clash[:3])}{' …' if len(clash) > 3 else ''} that no "
                                f"run of multilayer wrote there: move it away or choose another --out")
+        folders = sorted(n for n in previous if n in names and (self.path / n).is_dir() and not (self.path / n).is_symlink())
+        if folders:  # checked before anything is removed: a run's files are files
+            raise ResultsError(f"{self.path / folders[0]} is a folder, not a file of a run: move it away or "
+                               f"choose another --out (nothing touched)")
         for name in names:  # temporaries a run killed while writing left behind
             if (m := _TEMP.fullmatch(name)) and m[1] in previous | {MANIFEST, *FIXED}:
                 self._remove(name)

@@ -1,8 +1,18 @@
-"""A results folder read back: its summary, series and wall snapshots as arrays."""
+"""A results folder read back: its summary, series and wall snapshots as arrays.
+
+A folder is data users copy, share and download, and a run may still be
+writing it (or have been killed while it did): every reader here bounds the
+size it reads (:data:`MAX_SUMMARY`, :data:`MAX_TABLE`, :data:`MAX_SNAPSHOT`),
+reads a table's last line only when it is whole, and turns whatever it
+cannot read (not JSON, not numbers, not a VTU) into one
+:class:`~multilayer.results.files.ResultsError` naming the file.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
 import math
 import xml.etree.ElementTree as ET
@@ -17,6 +27,24 @@ import numpy as np
 from multilayer.results.files import ResultsError
 from multilayer.results.folder import snapshot_of
 
+#: the largest ``summary.json`` read (the resolved case and the run's figures: kilobytes)
+MAX_SUMMARY = 64 * 2**20
+#: the largest table read (``series.csv``, ``eta_lumen.csv``: a long adaptive run writes tens of MB)
+MAX_TABLE = 2**30
+#: the largest snapshot read
+MAX_SNAPSHOT = 2**30
+
+
+def _size_checked(path: Path, limit: int, what: str) -> Path:
+    """``path`` when it is at most ``limit`` bytes; ResultsError otherwise."""
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise ResultsError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    if size > limit:
+        raise ResultsError(f"{path} is {size:,} bytes, more than {what} of a run ever is ({limit:,}): not read")
+    return path
+
 
 @attrs.frozen(eq=False)
 class RunData:
@@ -30,7 +58,8 @@ class RunData:
     @property
     def case(self) -> Mapping[str, Any]:
         """The resolved case of ``summary.json`` ({} if there is none)."""
-        return self.summary.get("case") or {}
+        case = self.summary.get("case")
+        return case if isinstance(case, Mapping) else {}
 
     @property
     def probes(self) -> list[Mapping[str, Any]]:
@@ -43,16 +72,70 @@ class RunData:
 
 
 def read_series(path: Path) -> dict[str, np.ndarray]:
-    """``series.csv`` as column → float array; {} when the file is missing."""
+    """A table a run writes (``series.csv``, ``eta_lumen.csv``) as column → float array; {} when it is missing.
+
+    An empty cell reads as NaN.  A last line without its newline is a row the
+    run was writing when it stopped (or is writing now): it is left out.
+
+    Raises
+    ------
+    ResultsError
+        The file is larger than :data:`MAX_TABLE`, not text, or holds a cell that is not a number.
+    """
     if not path.is_file():
         return {}
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
+    try:
+        text = _size_checked(path, MAX_TABLE, "a table").read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ResultsError(f"{path} is not a table of a run (not text: {exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise ResultsError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    lines = text.split("\n")
+    whole = lines[:-1]  # the part after the last newline is a row still being written, or nothing
+    rows = list(csv.reader(whole))
     if not rows:
         return {}
     columns, body = rows[0], rows[1:]
-    return {c: np.array([float(r[i]) if i < len(r) and r[i] != "" else math.nan for r in body])
-            for i, c in enumerate(columns)}
+    values = np.full((len(body), len(columns)), math.nan)
+    for k, row in enumerate(body):
+        for i, cell in enumerate(row[:len(columns)]):
+            if cell != "":
+                try:
+                    values[k, i] = float(cell)
+                except ValueError:
+                    raise ResultsError(f"{path}, line {k + 2}, column {columns[i]!r}: {cell[:40]!r} is not a "
+                                       f"number: not a table of a run") from None
+    return {c: values[:, i].copy() for i, c in enumerate(columns)}
+
+
+def read_summary(path: Path) -> dict[str, Any]:
+    """``summary.json`` as a mapping; {} when it is missing.
+
+    Raises
+    ------
+    ResultsError
+        The file is larger than :data:`MAX_SUMMARY`, not JSON, nested beyond reason, or not a mapping.
+    """
+    if not path.is_file():
+        return {}
+    try:
+        summary = json.loads(_size_checked(path, MAX_SUMMARY, "a summary").read_bytes())
+    except (OSError, ValueError) as exc:
+        raise ResultsError(f"{path} cannot be read (not JSON: {exc})") from None
+    except RecursionError:
+        raise ResultsError(f"{path} is nested deeper than a summary ever is: not read") from None
+    if not isinstance(summary, dict):
+        raise ResultsError(f"{path} is not a summary of a run (a JSON {type(summary).__name__}, not an object)")
+    for key, kinds in _SUMMARY_KINDS.items():
+        if key in summary and summary[key] is not None and not isinstance(summary[key], kinds):
+            raise ResultsError(f"{path}: {key} is a JSON {type(summary[key]).__name__}, which a run never writes "
+                               f"there: not a summary of a run")
+    return summary
+
+
+#: what the entries of ``summary.json`` that readers use are, when present
+_SUMMARY_KINDS: dict[str, type | tuple[type, ...]] = {
+    "status": str, "reason": str, "steps": int, "case": dict, "energy": dict, "volume": dict, "dofs": dict}
 
 
 def read_run(label: str, folder: Path, status: str | None = None, reason: str = "") -> RunData:
@@ -61,9 +144,13 @@ def read_run(label: str, folder: Path, status: str | None = None, reason: str = 
     ``status`` and ``reason``, when given, are what running it returned;
     they replace the summary's when the two disagree (a run that raised
     before its ``summary.json`` said so).
+
+    Raises
+    ------
+    ResultsError
+        A file of the folder cannot be read (:func:`read_summary`, :func:`read_series`).
     """
-    summary_path = folder / "summary.json"
-    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    summary = read_summary(folder / "summary.json")
     if status is not None and summary.get("status") != status:
         summary = {**summary, "status": status, "reason": reason}
     return RunData(label, folder, summary, read_series(folder / "series.csv"))
@@ -105,29 +192,53 @@ def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarr
         series = read_series(table)
         columns = [c for c in series if c.startswith("z=")]
         if columns and len(series["t"]):
-            z = np.array([float(c[2:]) for c in columns])
+            try:
+                z = np.array([float(c[2:]) for c in columns])
+            except ValueError:
+                raise ResultsError(f"{table} has a column {next(c for c in columns if not _is_number(c[2:]))!r}, "
+                                   f"not z=<position>: not a table of a run") from None
             order = np.argsort(z, kind="stable")
             eta = np.column_stack([series[c] for c in columns])[:, order]
             return z[order], series["t"], eta
     pvd = folder / f"{part}.pvd"
     if not pvd.is_file():
         return None
+    try:
+        datasets = list(ET.parse(_size_checked(pvd, MAX_SUMMARY, "a collection")).getroot().iter("DataSet"))
+    except (OSError, ET.ParseError) as exc:
+        raise ResultsError(f"{pvd} cannot be read (not a collection of snapshots: {exc})") from None
     times, rows, z = [], [], None
-    for dataset in ET.parse(pvd).getroot().iter("DataSet"):
+    for dataset in datasets:
         name = dataset.get("file")
         # a collection is data: it may name only this part's snapshots, directly inside the folder
         if not ((snapshot := snapshot_of(name)) and snapshot[0] == part and not (folder / name).is_symlink()):
             raise ResultsError(f"{pvd} names {name!r}, not a snapshot {part}_<step>.vtu of the run in its folder: "
                                "not read")
-        mesh = meshio.read(folder / name)
-        on_lumen = np.isclose(mesh.points[:, 1], radius, rtol=0.0, atol=1e-9 * radius)
-        order = np.argsort(mesh.points[on_lumen, 0], kind="stable")
-        z = mesh.points[on_lumen, 0][order]
-        rows.append(mesh.point_data["displacement"][on_lumen, 1][order])
-        times.append(float(dataset.get("timestep")))
+        try:
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+                mesh = meshio.read(_size_checked(folder / name, MAX_SNAPSHOT, "a snapshot"))
+            on_lumen = np.isclose(mesh.points[:, 1], radius, rtol=0.0, atol=1e-9 * radius)
+            order = np.argsort(mesh.points[on_lumen, 0], kind="stable")
+            z = mesh.points[on_lumen, 0][order]
+            rows.append(mesh.point_data["displacement"][on_lumen, 1][order])
+            times.append(float(dataset.get("timestep")))
+        except ResultsError:
+            raise
+        except (Exception, SystemExit) as exc:  # meshio's parsers raise what they raise, and its VTU reader exits
+            why = "not a VTU file meshio parses" if isinstance(exc, SystemExit) else \
+                f"{type(exc).__name__}: {str(exc)[:120]}"
+            raise ResultsError(f"{folder / name} cannot be read as a snapshot of the run ({why})") from None
     if not rows:
         return None
     return z, np.array(times), np.array(rows)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def finite_rows(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -34,6 +34,7 @@ import hashlib
 import json
 import math
 import os
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,8 @@ LEGACY = "checkpoint.pkl"  #: what versions before 2 wrote: a pickle, never read
 MAGIC = "multilayer-checkpoint"
 #: the largest ``checkpoint.json`` read (bytes): the case, the plugins and the structure, never an array
 MAX_DOCUMENT = 64 * 2**20
+#: the largest checkpoint.npz read (a run's fields and held factors: megabytes for the cases run here)
+MAX_ARRAYS = 8 * 2**30
 FORMAT = 3  #: the format version: a newer one is refused (3: the owning run's identity)
 #: the dtypes an array of a checkpoint may have
 DTYPES = ("b", "i", "u", "f", "c")
@@ -348,6 +351,7 @@ def _read(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         raise CheckpointError(f"{path} has format version {version}, which this multilayer ({FORMAT}) does not read")
     if not npz.is_file():
         raise CheckpointError(f"{folder} has {FILE} but no {ARRAYS}")
+    _arrays_fit(npz)
     try:
         with np.load(npz, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
@@ -365,6 +369,49 @@ def _read(folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         raise CheckpointError(f"{path} and {ARRAYS} do not match their SHA-256 digest: the checkpoint is corrupt "
                               f"(or one of the two files is from another checkpoint)")
     return document, arrays
+
+
+def _arrays_fit(npz: Path) -> None:
+    """Refuse, before reading any array, an npz that would take more memory than its own size on disk.
+
+    A checkpoint's arrays are stored uncompressed (:func:`numpy.savez`), so each member's declared size is
+    its size in the file and each array's header (shape × item size) fits in its member: checked here, so that
+    a crafted file (a compressed member that inflates, a header that claims a shape of 2⁶⁰) is refused
+    instead of exhausting memory.
+    """
+    try:
+        size = npz.stat().st_size
+        if size > MAX_ARRAYS:
+            raise CheckpointError(f"{npz} is {size:,} bytes, more than a checkpoint's arrays ever are here "
+                                  f"({MAX_ARRAYS:,}): not read")
+        with zipfile.ZipFile(npz) as archive:
+            members = archive.infolist()
+            foreign = [m.filename for m in members if not m.filename.endswith(".npy")]
+            if foreign:
+                raise CheckpointError(f"{npz} holds what a checkpoint never writes (not arrays of numbers): "
+                                      f"{', '.join(foreign)[:200]}")
+            packed = [m.filename for m in members if m.compress_type != zipfile.ZIP_STORED]
+            if packed:
+                raise CheckpointError(f"{npz}: {packed[0][:60]!r} is compressed, which a checkpoint never is: "
+                                      f"not read")
+            if sum(m.file_size for m in members) > size:
+                raise CheckpointError(f"{npz} declares more data than it holds: not read")
+            for member in members:
+                with archive.open(member) as f:
+                    version = np.lib.format.read_magic(f)
+                    if version not in ((1, 0), (2, 0)):  # what numpy.savez writes
+                        raise CheckpointError(f"{npz}: {member.filename[:60]!r} is an array of format {version}, "
+                                              f"which a checkpoint never is: not read")
+                    read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+                        np.lib.format.read_array_header_2_0
+                    shape, _, dtype = read_header(f)
+                    if math.prod(shape) * dtype.itemsize > member.file_size:
+                        raise CheckpointError(f"{npz}: {member.filename[:60]!r} claims {shape} of {dtype}, more "
+                                              f"than its {member.file_size:,} bytes: not read")
+    except CheckpointError:
+        raise
+    except Exception as exc:  # not a zip, a header numpy does not read: zipfile, ValueError, OSError...
+        raise CheckpointError(f"{npz} cannot be read ({type(exc).__name__}: {str(exc)[:120]})") from None
 
 
 def load(folder: Path, registry: Registry, until: float | None = None) -> Checkpoint:
