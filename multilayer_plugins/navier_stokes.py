@@ -3,8 +3,8 @@
 ALE on the fixed reference channel, skew-symmetric advection with the
 domain velocity of the structure step, static-pressure ends with a
 backflow term (``ends``, ``backflow``; the seed's total pressure on
-request), SUPG stabilization of convection (``stabilization``; grad-div with
-``grad_div`` > 0).  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
+request), SUPG stabilization of convection with grad-div (``stabilization``,
+``grad_div``).  The model lives in :mod:`multilayer_plugins.channel`; ``stokes`` is the same
 class with the advection terms off.
 """
 
@@ -24,6 +24,6 @@ def multilayer_fluids() -> list[FluidPlugin]:
             factory=NavierStokes,
             params=NAVIER_STOKES_PARAMS,
             doc="Incompressible Navier–Stokes, ALE on the reference channel, skew-symmetric advection, SUPG-stabilized "
-                "(grad-div on request), static-pressure ends with a backflow term.",
+                "with grad-div, static-pressure ends with a backflow term.",
         )
     ]

@@ -162,8 +162,9 @@ def run_reversing(tmp_path, name, end, *sets, outlet="0.0"):
 
 def test_without_the_backflow_term_the_energy_grows_beyond_the_work(tmp_path):
     """β = 0, the plain do-nothing end: the kinetic energy the flow brings in is unbounded (the run stops at
-    t = 0.105 s, measured); β = 1 runs the same steps and on through the reversal."""
-    result, _ = run_reversing(tmp_path, "plain", 0.15, "fluid.backflow=0")
+    t = 0.089 s, measured); β = 1 runs the same steps and on through the reversal.  Under SUPG alone: grad-div's
+    dissipation (the default γ = 0.1) outweighs what this short run brings in, and it runs to 0.4 s ok."""
+    result, _ = run_reversing(tmp_path, "plain", 0.15, "fluid.backflow=0", "fluid.grad_div=0")
     assert result.status == "failed" and "energy grew beyond the work" in result.reason, result.reason
 
 
@@ -171,8 +172,8 @@ def test_without_the_backflow_term_the_energy_grows_beyond_the_work(tmp_path):
 def test_with_the_backflow_term_reversing_flow_stays_bounded(tmp_path, outlet):
     """Q = 20 sin(4πt) cm³/s, mean velocity ≤ 20/(π 0.3²) = 71 cm/s, reversing at t = 0.25 s, into a pressure
     or an RCR outlet (the rigid tube's velocity is the same).  Measured over 0.4 s: the outlet's centreline u_z
-    within −86…109 cm/s (total-pressure ends: −1256…1373), the outlet's backflow column 4.9e3 erg while the flow
-    comes back in; β = 0 stops at t = 0.134 s with the RCR outlet."""
+    within −76…104 cm/s (total-pressure ends: −453…462), the outlet's backflow column 4.9e3 erg while the flow
+    comes back in; β = 0 under SUPG alone stops at t = 0.094 s with the RCR outlet."""
     result, s = run_reversing(tmp_path, "stabilized", 0.4, outlet=outlet)
     assert result.status == "ok", result.reason
     assert np.all(np.abs(s["energy.relative_residual"]) <= 1e-9)

@@ -13,15 +13,15 @@ themselves ~8e-2 of it; leaving out the Laplacian's −u_r/r² or the old level 
 Womersley flow: the Galerkin Navier–Stokes step does not have it as its solution (the dynamic-pressure
 end effect of tests/test_fluid_poiseuille.py, here 2.6e-2 planar and 3.8e-2 in the tube at Re ≈ 23),
 so the stabilization is measured against the Galerkin step on the same mesh: their difference
-(relative L², BE, Δt = T/20, 4 steps, nz = nr = 4, 8, 16) is 2.19e-3, 7.63e-4, 1.41e-4 planar and
-3.37e-3, 1.14e-3, 2.09e-4 in the tube — below the end effect, and falling at orders 2.43 and 2.45
+(relative L², BE, Δt = T/20, 4 steps, nz = nr = 4, 8, 16) is 5.26e-4, 1.04e-4, 1.61e-5 planar and
+6.86e-4, 1.46e-4, 2.30e-5 in the tube — below the end effect, and falling at orders 2.69 and 2.66
 from 8 to 16.  The Stokes Womersley orders (tests/test_fluid_womersley.py, tests/test_axisymmetric_fluid.py) do not see
 the stabilization, which only the ``navier-stokes`` fluid has.
 
 The oscillation: a rigid tube R = 0.3 cm (the carotid's), ρ = 1.06, μ = 0.035, a flow rate of
 20 cm³/s from rest (mean velocity 71 cm/s: a cell Péclet number |u| h_z / 2ν ≈ 650 on 10 × 2
-cells), BDF2, Δt = 1e-3 s, 100 steps, SUPG as by default (grad_div = 0): the centreline u_z over
-the mean velocity at z = 0.5 … 5.5 spans [−17.1, 15.4] without stabilization and [0.76, 2.01]
+cells), BDF2, Δt = 1e-3 s, 100 steps, SUPG and grad-div as by default (grad_div = 0.1): the centreline
+u_z over the mean velocity at z = 0.5 … 5.5 spans [−17.1, 15.4] without stabilization and [0.76, 1.45]
 with it.
 """
 
@@ -167,7 +167,7 @@ def centreline_ratio(kind, nz, nr, Q=20.0, steps=100, dt=1e-3, L=6.0, R=0.3):
 
 def test_the_stabilization_removes_the_oscillation_of_an_artery_flow():
     lo, hi, residual = centreline_ratio("supg", 10, 2)
-    assert 0.0 < lo and hi < 2.5, (lo, hi)  # measured 0.76, 2.01
+    assert 0.0 < lo and hi < 2.5, (lo, hi)  # measured 0.76, 1.45
     assert residual < 1e-11
     lo, hi, _ = centreline_ratio("none", 10, 2)
     assert lo < -5.0 and hi > 5.0, (lo, hi)  # measured −17.1, 15.4: the control
@@ -191,8 +191,8 @@ def womersley_difference(geometry, n, G=10.0, dt=PERIOD / 20, steps=4):
 
 @pytest.mark.parametrize("name", sorted(GEOMETRIES))
 def test_the_stabilization_of_womersley_flow_is_below_the_end_effect_and_falls_under_refinement(name):
-    """Planar 2.19e-3, 7.63e-4, 1.41e-4 (the Galerkin step 2.6e-2 off the profile); tube 3.37e-3, 1.14e-3,
-    2.09e-4 (3.8e-2): orders 2.43 and 2.45 from nz = nr = 8 to 16."""
+    """Planar 5.26e-4, 1.04e-4, 1.61e-5 (the Galerkin step 0.104 off the profile); tube 6.86e-4, 1.46e-4,
+    2.30e-5 (0.102): orders 2.69 and 2.66 from nz = nr = 8 to 16."""
     differences, ends = zip(*[womersley_difference(GEOMETRIES[name], n) for n in (4, 8, 16)])
     assert np.all(np.array(differences) < 0.4 * np.array(ends)), (differences, ends)
     assert np.log2(differences[1] / differences[2]) > 1.8, differences

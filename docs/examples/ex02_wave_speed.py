@@ -7,7 +7,7 @@ straight line through (arrival time, z) gives the speed.  The long-wave
 estimate √(R·C0/ρ_f) (C0 = hE/(R²(1-σ²)), the shell's hoop stiffness) is
 printed beside it.
 
-Prints the measured speed in cm/s (about 529 on this coarse mesh).
+Prints the measured speed in cm/s (about 528 on this coarse mesh).
 """
 
 import math

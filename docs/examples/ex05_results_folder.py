@@ -6,7 +6,7 @@ such folder back — one written by the command line, by a sweep, or by a
 run that failed.  ``eta_lumen`` is η on the lumen at every vertex and every
 step: the space-time picture of the pulse, drawn here with matplotlib.
 
-Prints the peak η at z = 1 cm read from that field, in µm (about 488.8 on
+Prints the peak η at z = 1 cm read from that field, in µm (about 488.2 on
 this coarse mesh): the probe at z = 1 sits on a vertex, so the field and
 the probe agree exactly.
 """

@@ -23,7 +23,7 @@ from multilayer_plugins.channel.ale import ALEFields, deformation, volume_elemen
 from multilayer_plugins.channel.channel import Channel
 from multilayer_plugins.channel.end_convection import END_PRESSURES
 from multilayer_plugins.channel.ledger import fluid_kinetic
-from multilayer_plugins.channel.stabilization import KINDS, Stabilization
+from multilayer_plugins.channel.stabilization import GRAD_DIV, KINDS, Stabilization
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
 
 #: The parameters of every channel fluid, for its plugin record.
@@ -43,7 +43,7 @@ NAVIER_STOKES_PARAMS = PARAMS + (
     Param("stabilization", "", "", default="supg", type=str, choices=KINDS,
           doc="residual-based stabilization of convection: 'supg' (SUPG on the momentum residual, grad-div if grad_div > 0) "
               "or 'none' (Galerkin)"),
-    Param("grad_div", "γ", "1", default=0.0, ge=0.0,
+    Param("grad_div", "γ", "1", default=GRAD_DIV, ge=0.0,
           doc="scale γ of grad-div's cell viscosity τ_C = γ|a|h/2 under 'supg' (0: SUPG alone)"),
 )
 
@@ -276,7 +276,7 @@ class ChannelFluid(Fluid):
 
 
 class NavierStokes(ChannelFluid):
-    """Incompressible Navier–Stokes (ALE, skew-symmetric advection), SUPG-stabilized by default (grad-div on request).
+    """Incompressible Navier–Stokes (ALE, skew-symmetric advection), SUPG- and grad-div-stabilized by default.
 
     Parameters
     ----------
@@ -292,13 +292,13 @@ class NavierStokes(ChannelFluid):
     stabilization : str
         ``"supg"`` (default) or ``"none"`` (:mod:`multilayer_plugins.channel.stabilization`).
     grad_div : float
-        γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default 0: SUPG alone).
+        γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default :data:`GRAD_DIV`; 0: SUPG alone).
     """
 
     advection = True
 
     def __init__(self, density: float, viscosity: float, ends: str = "static-pressure",
-                 backflow: float | None = None, stabilization: str = "supg", grad_div: float = 0.0):
+                 backflow: float | None = None, stabilization: str = "supg", grad_div: float = GRAD_DIV):
         super().__init__(density, viscosity)
         if ends not in END_PRESSURES:
             raise ValueError(f"fluid.ends must be one of {END_PRESSURES}, got {ends!r}")
