@@ -71,7 +71,7 @@ R + η ≤ 0 closes the channel; the initial radial displacement must keep R + �
 
 
 def equilibrium_problems(pressure: float | None, initial: Any) -> list[Problem]:
-    """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.scene.equilibrium`) given together
+    """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.wall.equilibrium`) given together
     with the ``initial`` table's ``displacement`` or ``velocity``: the wall would be given twice.
 
     >>> print(*equilibrium_problems(2000.0, {"displacement": {"r": "0.01"}}))
