@@ -5,6 +5,8 @@ a wall given both as a displacement and as the static equilibrium under ``initia
 and real); here it is also weighed against the channel it displaces: the run
 stops at once on a lumen with R + η ≤ 0 or |η| beyond ``[solver]
 max_displacement`` × R, and that check names no key, so validation does.
+The static start under ``initial.pressure`` is weighed the same way
+(:mod:`multilayer.case.trial_walls`).
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ at t = 0 on the outer surface.  The fluid's pressure acts on the lumen's
 deformed place r = R + η: under a measure c·rᵏ its work vector is
 P⁰ ∫ ψ ((R + η)/R)ᵏ dA, so a tube's (k = 1) depends on η and the
 deflection is iterated to round-off; a planar one (k = 0) is one solve.
+Validation solves it too, to weigh the deflection against the channel
+(:func:`multilayer.case.trial_walls.deflection_problems`).
 """
 
 from __future__ import annotations
