@@ -20,7 +20,7 @@ import attrs
 
 from multilayer.case import resources
 from multilayer.case.contracts import contract_problem
-from multilayer.case.ends import END_KEYS, build_end
+from multilayer.case.ends import END_KEYS, build_end, closed_volume_problems
 from multilayer.case.files import read_case
 from multilayer.case.grid import sweep_table
 from multilayer.case.initial import closing_problems, initial_data, initial_pressure
@@ -257,6 +257,7 @@ class _Validator:
             self.add(closing_problems(*(parts[k] for k in ("geometry", "mesh", "initial", "limits"))))
         case = Case(**parts)
         self.add(self.objections(case))
+        self.add(closed_volume_problems(case, self.coupler_object, self.ends))
         if wall_fits:
             self.add(static_start_problems(case, self.coupler_object, shape, layers, self.built_layers))
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
