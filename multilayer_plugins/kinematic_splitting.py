@@ -74,8 +74,8 @@ from multilayer.numerics.stepsize import local_error
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
-from multilayer.scene.equilibrium import lumen_force
 from multilayer.scene.state import State
+from multilayer.wall.equilibrium import lumen_force
 from multilayer.wall.stack import LUMEN
 
 SCHEMES = ("backward-euler", "crank-nicolson")

@@ -193,6 +193,11 @@ def test_coupler_check_case(case_file):
     assert coupler_problems(case, FAKES) == []
 
 
+def test_a_coupler_known_by_energy_and_evolve_alone_leaves_the_static_start_to_the_run(case_file):
+    """The fake coupler has no radial_lines or fluid_wall (the Coupler base class's): validation does not ask."""
+    assert load_case(case_file, ["initial={pressure=1e9}"], FAKES).initial.pressure == 1e9
+
+
 def test_coupler_objections_come_with_every_other_problem(case_file):
     with pytest.raises(CaseError) as info:
         load_case(case_file, ["fluid=none", "coupler=kinematic-splitting", "output.probes[2].quantity=eta",

@@ -10,12 +10,15 @@ coupler takes as it is; the ledger closes with the prescribed flow's work
 Q(t): tests/test_fluid_womersley.py.
 """
 
+import attrs
 import numpy as np
 import pytest
 from runs import CASES, assert_resume_is_bit_identical, run_case_file
 from test_boundary_plugins import TINY
 
 from multilayer.case.casefile import load_case
+from multilayer.commands.main import main
+from multilayer.coupling.build import prepare
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 
@@ -125,10 +128,62 @@ def test_bad_input_is_a_clear_error_at_its_key_path(inlet, message):
         load_case(CASES / "poiseuille-rigid.toml", [f"loads.inlet={inlet}"], REGISTRY)
 
 
-def test_a_flow_rate_at_both_ends_of_a_rigid_channel_is_refused(tmp_path):
-    both = ('loads.inlet={kind="flow-rate",flow=1.0}', 'loads.outlet={kind="flow-rate",flow=-1.0}')
-    result, _ = run(tmp_path, "poiseuille-rigid", *both)
-    assert result.status != "ok" and "prescribe a pressure at one end" in result.reason
+BOTH = ('loads.inlet={kind="flow-rate",flow=1.0}', 'loads.outlet={kind="flow-rate",flow=-1.0}')
+
+
+#: what a given motion of the wall ties the two flow rates to
+GIVEN = ("whose every step {} gives the wall's motion: the volume between them changes only as that motion does, so "
+         "the two flow rates must add up to its change at every step")
+
+
+@pytest.mark.parametrize("case, sets, wall", [
+    ("poiseuille-rigid", (), "in a rigid wall ('fluid-only'): the volume between them is fixed, so what flows in at "
+                             "one end must flow out at the other at every step"),
+    ("prescribed-wall", (), GIVEN.format("'fluid-only'")),
+    ("carotid", ('coupler="dirichlet-neumann-implicit"',), GIVEN.format("'dirichlet-neumann-implicit'")),
+])
+def test_a_flow_rate_at_both_ends_of_a_fluid_that_moves_no_wall_is_refused_at_validation(case, sets, wall):
+    """A rigid wall, a prescribed one, or a coupler whose fluid step is given the wall's motion: the two rates are
+    tied to a given volume and no end sets the pressure's level.  One problem, naming both ends."""
+    with pytest.raises(CaseError) as info:
+        load_case(CASES / f"{case}.toml", (*sets, *BOTH), REGISTRY)
+    assert [str(p) for p in info.value.problems] == [
+        f"loads.outlet.kind = 'flow-rate': a flow rate at both ends (loads.inlet.kind = 'flow-rate' too) of a fluid "
+        f"{wall}, and no end sets the level of the pressure; expected a flow rate at one end at most; give the other "
+        f"end a pressure, a resistance or a windkessel, or couple a compliant wall ([[layers]] with 'monolithic' or "
+        f"'kinematic-splitting'), which stores the difference (from --set)"]
+
+
+def test_the_cli_refuses_it_in_one_line_before_anything_runs(tmp_path, capsys):
+    sets = [a for s in BOTH for a in ("--set", s)]
+    for argv in (["validate", str(CASES / "poiseuille-rigid.toml"), *sets],
+                 ["run", str(CASES / "poiseuille-rigid.toml"), "--out", str(tmp_path / "out"), *sets]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 2 and err[1].startswith("loads.outlet.kind = 'flow-rate': a flow rate at both ends"), err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_fluid_refuses_it_too_when_built_without_validation():
+    """The fluid's own guard, for a setup built from a case assembled in Python."""
+    case = load_case(CASES / "poiseuille-rigid.toml", BOTH[:1], REGISTRY)
+    case = attrs.evolve(case, loads=attrs.evolve(case.loads, outlet=case.loads.inlet))
+    with pytest.raises(ValueError, match="a flow rate at both ends of a fluid on a rigid wall"):
+        prepare(case, REGISTRY)
+
+
+def test_a_compliant_wall_stores_what_two_flow_rates_leave_behind(tmp_path):
+    """A closed outlet (flow 0) on the planar quick start under monolithic: the inflow has nowhere to go but the
+    wall, which takes it; the volume ledger closes to round-off (a planar wall moving with the fluid's velocity)
+    and the lumen holds what came in."""
+    result, data = run(tmp_path, "quick-start", "mesh.nz=20", "mesh.nr=3", "time.end=0.002",
+                       f"loads.inlet={{kind=\"flow-rate\",flow={PULSE}}}", 'loads.outlet={kind="flow-rate",flow=0.0}')
+    assert result.status == "ok", result.reason
+    s = data.series
+    assert np.max(np.abs(s["volume.relative_residual"])) <= 1e-10
+    assert np.max(np.abs(s["end.outlet.Q"])) <= 1e-12 * np.max(np.abs(s["end.inlet.Q"]))
+    moved = s["volume.fluid"][-1] - 6.0 * 0.5  # from the channel at rest, L × R (cm² per unit depth)
+    assert moved > 0.02 and abs(moved - float(np.sum(-s["end.inlet.Q"] * 1e-4))) <= 1e-12 * moved  # Δt = 1e-4
 
 
 def test_a_run_with_a_flow_rate_inlet_resumes_bit_identical(tmp_path):

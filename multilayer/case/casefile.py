@@ -20,7 +20,7 @@ import attrs
 
 from multilayer.case import resources
 from multilayer.case.contracts import contract_problem
-from multilayer.case.ends import END_KEYS, build_end
+from multilayer.case.ends import END_KEYS, build_end, closed_volume_problems
 from multilayer.case.files import read_case
 from multilayer.case.grid import sweep_table
 from multilayer.case.initial import closing_problems, initial_data, initial_pressure
@@ -61,6 +61,7 @@ from multilayer.case.schema import (
     reserved_column,
     reserved_problem,
 )
+from multilayer.case.trial_walls import layer_problems, static_start_problems
 from multilayer.functions.domain import Domain, judge
 from multilayer.functions.formula import Formula, FormulaError
 from multilayer.functions.loads import FormulaPressure, load_from_spec
@@ -75,7 +76,6 @@ from multilayer.plugin.problems import (
 )
 from multilayer.plugin.records import Param
 from multilayer.plugin.registry import Registry
-from multilayer.wall import probe as wall_probe
 from multilayer.wall.checks import abstract_problem, raised, type_problem
 
 __all__ = ["CaseError", "Problem", "load_case", "read_case", "validate_data", "apply_overrides", "coupler_problems",
@@ -226,7 +226,9 @@ class _Validator:
         layers, H, parts["layers"] = self.layers(data.get("layers", MISSING), fluid)
         self.add(sized := resources.size_problems(mesh, fluid is not None, layers))
         if self.mark() == mark and shape is not None:
-            self.probe_layers(layers, shape, geometry, mesh)
+            self.add(layer_problems(layers, self.built_layers, shape, geometry, mesh))
+        # every layer built and assembled on the probe wall, and the case fits in memory: the wall can be built
+        wall_fits = self.mark() == mark and shape is not None
         coupler = parts["coupler"] = self.coupler(data.get("coupler", MISSING), fluid)
         # stand-ins keep formulas checkable while geometry or time have their own problems
         constants = {"L": geometry.get("length", 1.0), "R": geometry.get("radius", 1.0), "H": H}
@@ -255,6 +257,9 @@ class _Validator:
             self.add(closing_problems(*(parts[k] for k in ("geometry", "mesh", "initial", "limits"))))
         case = Case(**parts)
         self.add(self.objections(case))
+        self.add(closed_volume_problems(case, self.coupler_object, self.ends))
+        if wall_fits:
+            self.add(static_start_problems(case, self.coupler_object, shape, layers, self.built_layers))
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
             self.add(sweep_table(data["sweep"])[1])
         if self.problems:
@@ -436,22 +441,6 @@ class _Validator:
                                              f"{type(shape).__name__}, not a Geometry"))
             shape = None
         return {**values, "params": params}, shape
-
-    def probe_layers(self, layers: list[LayerSpec], shape: Shape, geometry: Mapping[str, float],
-                     mesh: Mapping[str, Any]) -> None:
-        """Have every layer assemble on a small wall (:mod:`multilayer.wall.probe`); problems at its path.
-
-        Only when every layer was built as a layer of its kind and nothing
-        else is wrong with the stack: a wall cannot be placed otherwise.
-        """
-        if not layers or len(self.built_layers) != len(layers):
-            return
-        objects = [self.built_layers[layer.path] for layer in layers]
-        found = wall_probe.probe(objects, [layer.model for layer in layers], shape, geometry.get("length", 1.0),
-                                 geometry.get("radius", 1.0), mesh.get("order", 2))
-        for index, problems in found.items():
-            layer = layers[index]
-            self.problems.append(Problem(layer.path, MISSING, f"{layer.model}: " + "; ".join(problems)))
 
     def coupler(self, spec: Any, fluid: ModelSpec | None) -> ModelSpec:
         default = "structure-only" if fluid is None else "kinematic-splitting"

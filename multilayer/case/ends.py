@@ -5,7 +5,9 @@ formula in t) or a table ``{kind = "<boundary condition>", ...}`` under
 ``[loads] inlet`` / ``outlet``.  The kind is a boundary plugin
 (``multilayer plugins``); its parameters are checked against the plugin's
 schema, then its factory builds the condition (the factory's own verdict
-on the values comes back as problems at the end's key path).
+on the values comes back as problems at the end's key path).  Two ends
+that both prescribe their flux are weighed against the wall between them
+(:func:`closed_volume_problems`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from multilayer.boundary.contract import BoundaryCondition, BuildContext
+from multilayer.case.partial import NotBuilt, Unbuilt
+from multilayer.fluid.contract import GIVEN_WALLS
 from multilayer.plugin.problems import (
     MISSING,
     CaseError,
@@ -88,3 +92,52 @@ def build_end(spec: Any, path: str, registry: Registry, base_dir: Path | str = "
         raise CaseError([Problem(path, MISSING, f"{kind}: the factory returned {type(condition).__name__}, "
                                                 f"not a BoundaryCondition")])
     return condition, condition.resolved() or {"kind": kind, **params}
+
+
+def closed_volume_problems(case: Any, coupler: Any, resolved: Mapping[str, Mapping[str, Any]]) -> list[Problem]:
+    """:func:`given_volume_problems` of ``case``, which may have placeholders (:mod:`multilayer.case.partial`):
+    when the coupler (``coupler``; None: it could not be built) says how the fluid sees the wall, and it, both
+    ends and the parts it reads to say so were built.  ``resolved`` holds each end's resolved data (its kind)."""
+    conditions = {end: getattr(case.loads, end) for end in END_KEYS}
+    fluid_wall = getattr(coupler, "fluid_wall", None)  # (a coupler is known by its energy and evolve alone)
+    if fluid_wall is None or case.fluid is None or any(isinstance(c, Unbuilt) for c in conditions.values()):
+        return []
+    try:
+        wall = fluid_wall(case)
+    except NotBuilt:
+        return []
+    return given_volume_problems(conditions, {end: resolved[end].get("kind") for end in END_KEYS}, wall,
+                                 case.coupler.model)
+
+
+def given_volume_problems(conditions: Mapping[str, BoundaryCondition], kinds: Mapping[str, str], wall: str,
+                          coupler: str) -> list[Problem]:
+    """Both ends prescribing their flux (a flow rate each) around a fluid that moves no wall.
+
+    ``conditions`` and ``kinds`` are each end's condition and its kind's name, ``wall`` how the fluid sees the
+    wall (:meth:`Coupler.fluid_wall`), ``coupler`` the coupler's name.  Under a compliant wall the wall stores
+    the difference of the two flow rates and its stiffness sets the pressure; under a rigid or given wall
+    (:data:`~multilayer.fluid.contract.GIVEN_WALLS`) the lumen's volume is data, so the two rates are tied to
+    it at every step, and no end sets the level of the pressure: the step has no unique solution.
+
+    >>> from types import SimpleNamespace
+    >>> flow = SimpleNamespace(constraint=True)  # a flow-rate end
+    >>> print(*given_volume_problems({"inlet": flow, "outlet": flow}, {"inlet": "flow-rate", "outlet": "flow-rate"},
+    ...                              "rigid", "fluid-only"))  # doctest: +ELLIPSIS
+    loads.outlet.kind = 'flow-rate': a flow rate at both ends (loads.inlet.kind = 'flow-rate' too) of a fluid in \
+a rigid wall ('fluid-only'): the volume between them is fixed, so what flows in at one end must flow out at the \
+other at every step, and no end sets the level of the pressure; expected a flow rate at one end at most; ...
+    """
+    if wall not in GIVEN_WALLS or not all(conditions[end].constraint for end in END_KEYS):
+        return []
+    inlet, outlet = END_KEYS
+    volume = {"rigid": f"in a rigid wall ({coupler!r}): the volume between them is fixed, so what flows in at one "
+                       f"end must flow out at the other at every step",
+              "prescribed": f"whose every step {coupler!r} gives the wall's motion: the volume between them "
+                            f"changes only as that motion does, so the two flow rates must add up to its change at "
+                            f"every step"}
+    return [Problem(f"loads.{outlet}.kind", kinds[outlet],
+                    f"a flow rate at both ends (loads.{inlet}.kind = {kinds[inlet]!r} too) of a fluid {volume[wall]}, "
+                    f"and no end sets the level of the pressure; expected a flow rate at one end at most",
+                    "give the other end a pressure, a resistance or a windkessel, or couple a compliant wall "
+                    "([[layers]] with 'monolithic' or 'kinematic-splitting'), which stores the difference")]

@@ -5,6 +5,8 @@ a wall given both as a displacement and as the static equilibrium under ``initia
 and real); here it is also weighed against the channel it displaces: the run
 stops at once on a lumen with R + η ≤ 0 or |η| beyond ``[solver]
 max_displacement`` × R, and that check names no key, so validation does.
+The static start under ``initial.pressure`` is weighed the same way
+(:mod:`multilayer.case.trial_walls`).
 """
 
 from __future__ import annotations
@@ -71,7 +73,7 @@ R + η ≤ 0 closes the channel; the initial radial displacement must keep R + �
 
 
 def equilibrium_problems(pressure: float | None, initial: Any) -> list[Problem]:
-    """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.scene.equilibrium`) given together
+    """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.wall.equilibrium`) given together
     with the ``initial`` table's ``displacement`` or ``velocity``: the wall would be given twice.
 
     >>> print(*equilibrium_problems(2000.0, {"displacement": {"r": "0.01"}}))

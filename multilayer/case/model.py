@@ -115,7 +115,7 @@ class Loads:
 class Initial:
     """Initial wall displacement and velocity, as formulas in (z, r); or, with ``pressure``, the fluid at rest at
     that uniform pressure (dyn/cm²) and the wall in static equilibrium under it
-    (:mod:`multilayer.scene.equilibrium`)."""
+    (:mod:`multilayer.wall.equilibrium`)."""
 
     displacement_z: Formula
     displacement_r: Formula

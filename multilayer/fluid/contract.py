@@ -22,6 +22,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: the fluid's open ends: z = 0 and z = L
 ENDS = ("inlet", "outlet")
+#: the wall modes (:attr:`FluidSetup.wall`) in which the fluid is given the wall's motion and moves no wall
+#: itself: the lumen's volume is then data, and a flow rate at both ends has no solution
+GIVEN_WALLS = ("rigid", "prescribed")
 
 
 @attrs.frozen(eq=False)

@@ -21,11 +21,11 @@ from multilayer.fluid.contract import ENDS, Fluid, FluidSetup
 from multilayer.geometry.contract import Geometry
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.plugin.registry import Registry
-from multilayer.scene.equilibrium import static_deflection
 from multilayer.scene.state import State, WallState
 from multilayer.wall.checks import LayerError, abstract_problem, raised, type_problem
+from multilayer.wall.equilibrium import static_deflection
 from multilayer.wall.layer import Layer
-from multilayer.wall.stack import LUMEN, Stack, WallSpace
+from multilayer.wall.stack import LUMEN, Stack, WallSpace, fluid_pinned_lines
 
 
 def build_model(registry: Registry, kind: str, spec) -> Any:
@@ -98,8 +98,7 @@ class Setup:
         if layers:
             wall = WallSpace.build(layers, geometry, g.length, g.radius, m.nz, m.order,
                                    [spec.cells for spec in case.layers], [spec.model for spec in case.layers])
-            pinned = (LUMEN,) if fluid is not None and not layers[0].thin else ()
-            stack = Stack.assemble(wall, radial_lines, pinned)
+            stack = Stack.assemble(wall, radial_lines, fluid_pinned_lines(layers, fluid is not None))
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
             # the lumen's DOFs the wall holds at rest (a band whose inner face slides): the fluid's u_r is 0 there
@@ -117,7 +116,7 @@ class Setup:
         """t = 0: the case's initial wall (essential DOFs zeroed), the fluid at rest on the wall's domain.
 
         With ``[initial] pressure`` the wall is the static deflection under it (and the external pressure at
-        t = 0): :func:`~multilayer.scene.equilibrium.static_deflection`.
+        t = 0): :func:`~multilayer.wall.equilibrium.static_deflection`.
         """
         wall = v = eta = fluid = None
         if self.wall is not None:

@@ -225,6 +225,12 @@ class Stack:
         return x
 
 
+def fluid_pinned_lines(layers: Sequence[Layer], fluid: bool) -> tuple[int, ...]:
+    """The lines whose ends a fluid pins in both components (:meth:`Stack.assemble`'s ``pinned_lines``): the
+    lumen's, when a fluid lies directly on a thick first layer (the fluid domain keeps its length)."""
+    return (LUMEN,) if fluid and layers and not layers[0].thin else ()
+
+
 def layer_output(p: Placement, space: LineSpace | BandSpace) -> tuple[LayerMatrices, np.ndarray]:
     """The matrices and essential DOFs of the layer placed at ``p``, on its ``space``, checked.
 

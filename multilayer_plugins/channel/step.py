@@ -56,7 +56,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from multilayer.boundary.contract import BoundaryCondition, EndTraction
-from multilayer.fluid.contract import ENDS, Domain, Interface
+from multilayer.fluid.contract import ENDS, GIVEN_WALLS, Domain, Interface
 from multilayer.geometry.spaces import prolongation_dofs
 from multilayer.numerics.assembly.batched import BatchedForm, SkewPart
 from multilayer.numerics.assembly.pattern import Pattern
@@ -199,7 +199,7 @@ class FluidStep:
         self._pu = BatchedForm(ub, pb)
         uu, pu = (self._uu.rows, self._uu.cols), (self._pu.rows + nu, self._pu.cols)
         self.ends = Ends(channel, ends or {}, density, backflow if advection else None)
-        if wall in ("rigid", "prescribed") and len(self.ends.multipliers) == len(ENDS):
+        if wall in GIVEN_WALLS and len(self.ends.multipliers) == len(ENDS):
             # the incompressibility dilemma: a fluid whose wall it does not move has no volume to give
             raise ValueError(f"a flow rate at both ends of a fluid on a {wall} wall fixes its volume balance twice "
                              f"and leaves the level of the pressure free: prescribe a pressure at one end")

@@ -9,6 +9,8 @@ at t = 0 on the outer surface.  The fluid's pressure acts on the lumen's
 deformed place r = R + η: under a measure c·rᵏ its work vector is
 P⁰ ∫ ψ ((R + η)/R)ᵏ dA, so a tube's (k = 1) depends on η and the
 deflection is iterated to round-off; a planar one (k = 0) is one solve.
+Validation solves it too, to weigh the deflection against the channel
+(:func:`multilayer.case.trial_walls.deflection_problems`).
 """
 
 from __future__ import annotations
@@ -23,8 +25,21 @@ from multilayer.wall.stack import LUMEN, Stack
 
 #: the relative change of the deflection at which the iteration of a measure moving with η stops
 ROUND_OFF = 1e-14
+#: a relative change that has stopped shrinking below this is the round-off floor of the solves (2e-14 on a thick
+#: band under a fluid that pins its lumen's ends only), not a wall giving way: the iteration stops there too
+FLOOR = 1e-10
 #: iterations allowed (the fluid's share of the stiffness, P⁰ k/R against the wall's, is small)
 MAX_ITERATIONS = 60
+
+
+class Unsettled(ValueError):
+    """The iteration of a measure moving with the lumen did not settle: the pressure on the moved lumen outgrows
+    the wall's stiffness.  ``linear`` is its first iterate, the deflection under the load on the reference
+    lumen (wall numbering)."""
+
+    def __init__(self, message: str, linear: np.ndarray):
+        super().__init__(message)
+        self.linear = linear
 
 
 def static_deflection(stack: Stack, pressure: float, external: float) -> np.ndarray:
@@ -33,28 +48,31 @@ def static_deflection(stack: Stack, pressure: float, external: float) -> np.ndar
 
     Raises
     ------
-    ValueError
-        When the iteration of a measure moving with the lumen does not settle.
+    Unsettled
+        When the iteration of a measure moving with the lumen does not settle (a ValueError).
     """
     space = stack.space
     k = space.lines[LUMEN].geometry.radial_power
     free = stack.free
     solve = splu(stack.stiffness.tocsc()[free][:, free]).solve
     outer = -external * space.line_load(space.outer_line)
-    d = np.zeros(space.ndofs)
-    for _ in range(MAX_ITERATIONS):
+    d, previous = np.zeros(space.ndofs), np.inf
+    for iteration in range(MAX_ITERATIONS):
         eta = space.restrictions[LUMEN] @ d
         f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
         new = np.zeros_like(d)
         new[free] = solve(f[free])
         change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
         d = new
-        if k == 0 or change <= ROUND_OFF * size:
+        if iteration == 0:
+            linear = new
+        if k == 0 or change <= ROUND_OFF * size or previous <= change <= FLOOR * size:
             return d
-    raise ValueError(f"the wall's static equilibrium under initial.pressure = {pressure:g} did not settle in "
-                     f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm): the pressure on the moved "
-                     f"lumen softens the wall (by P⁰/R per unit η) more than its stiffness holds; a smaller "
-                     f"initial.pressure")
+        previous = change
+    raise Unsettled(f"the wall's static equilibrium under initial.pressure = {pressure:g} did not settle in "
+                    f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm): the pressure on the moved "
+                    f"lumen softens the wall (by P⁰/R per unit η) more than its stiffness holds; a smaller "
+                    f"initial.pressure", linear)
 
 
 def lumen_force(space: Any, pressure: float, eta: np.ndarray) -> np.ndarray:
