@@ -1,6 +1,7 @@
 """What a :class:`~multilayer.numerics.linsolve.ReusingSolver` holds between two steps, as data.
 
-A checkpoint keeps it (:func:`held`) and a resumed run gives it back (:func:`restore`), so the run goes
+A checkpoint keeps it (:func:`held`) and a resumed run gives it back (the solver's ``restore``, the matrix
+read by :func:`matrix_of`), so the run goes
 on as if it had never stopped: the matrix the held factors were made from is factorized again in the
 same precision — a deterministic factorization of the same matrix gives the same factors — and the
 break-even counters and the GMRES guess span (:class:`~multilayer.numerics.krylov.SolutionSpan`) are
@@ -44,25 +45,15 @@ def held(solver: Any) -> dict[str, Any]:
             "factorization_cost": None if cost is None else float(cost), "span": X, "count": int(count)}
 
 
-def restore(solver: Any, state: dict[str, Any]) -> None:
-    """Give ``solver`` back the ``state`` :func:`held` took (checked by :func:`check`): its matrix factorized
-    again in its precision, its counters, its span.  Its next solve is the one of the run ``state`` is from."""
-    from multilayer.numerics.linsolve import factorize
-
-    solver._factors = solver._matrix = solver._factored = None
-    solver._last_key = solver.last = None
-    solver._single = solver.reuse.factors == "single" and not state["double_only"]
+def matrix_of(state: dict[str, Any]) -> tuple[sp.spmatrix, bool] | None:
+    """The matrix the held factors of ``state`` (checked by :func:`check`) were made from, and whether they were
+    single precision; None when the solver held none.  The solver factorizes it again
+    (:meth:`~multilayer.numerics.linsolve.ReusingSolver.restore`)."""
     m = state["matrix"]
-    if m is not None:
-        kind = sp.csr_matrix if m["format"] == "csr" else sp.csc_matrix
-        A = kind((m["data"], m["indices"], m["indptr"]), shape=tuple(m["shape"]))
-        solver._factors = factorize(A, solver.stats, solver.backend, single=m["single"])
-        solver._factored = (A, m["single"])
-        solver._matrix = object()  # no later matrix is this one: the next is new, as it was in the run
-        solver._shape = A.shape
-    solver._rate, solver._excess = state["rate"], state["excess"]
-    solver.stats.factorization_cost = state["factorization_cost"]
-    solver._span.restore(state["span"], state["count"])
+    if m is None:
+        return None
+    kind = sp.csr_matrix if m["format"] == "csr" else sp.csc_matrix
+    return kind((m["data"], m["indices"], m["indptr"]), shape=tuple(m["shape"])), m["single"]
 
 
 def check(state: Any, span: int = 8) -> None:

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from multilayer.numerics.held import kept
+from multilayer.numerics.held import held, kept, matrix_of
 from multilayer.numerics.krylov import (
     GMRESResult,
     SolutionSpan,
@@ -471,15 +471,22 @@ class ReusingSolver:
 
     def held(self) -> dict:
         """What the solver holds between two steps, as data (:func:`multilayer.numerics.held.held`)."""
-        from multilayer.numerics.held import held
-
         return held(self)
 
     def restore(self, state: dict) -> None:
-        """Take back what :meth:`held` gave (:func:`multilayer.numerics.held.restore`)."""
-        from multilayer.numerics.held import restore
-
-        restore(self, state)
+        """Take back what :meth:`held` gave (checked by :func:`multilayer.numerics.held.check`): the matrix
+        factorized again in its precision, the counters, the span; the next solve is the one of the run it is from."""
+        self._factors = self._matrix = self._factored = None
+        self._last_key = self.last = None
+        self._single = self.reuse.factors == "single" and not state["double_only"]
+        if (held_matrix := matrix_of(state)) is not None:
+            A, single = held_matrix
+            self._factors = factorize(A, self.stats, self.backend, single=single)
+            self._factored, self._shape = (A, single), A.shape
+            self._matrix = object()  # no later matrix is this one: the next is new, as it was in the run
+        self._rate, self._excess = state["rate"], state["excess"]
+        self.stats.factorization_cost = state["factorization_cost"]
+        self._span.restore(state["span"], state["count"])
 
     def repeats(self, A: sp.spmatrix, key=None) -> bool:
         """True when ``A`` (``key`` standing for it) is the matrix solved just before: a sub-iteration's matrix,
