@@ -13,8 +13,6 @@ The Python API (:mod:`multilayer.api`, ``docs/python-api.md``)::
     print(res.status, res.peaks, res.max_relative_residual)
 """
 
-from multilayer.version import __version__
-
 __all__ = [
     "ArgumentError",
     "Case",
@@ -32,11 +30,18 @@ __all__ = [
 
 
 def __getattr__(name: str):
-    """The API's names, imported when first asked for: ``import multilayer`` itself loads no numerics.
+    """The API's names and ``__version__``, imported when first asked for: ``import multilayer`` itself imports
+    nothing.
 
     (The API brings numpy, scipy and scikit-fem with it; every ``multilayer`` command and every worker of
-    a sweep imports this package, most without wanting the API.)
+    a sweep imports this package, most without wanting the API.  The version is read from the installed
+    package's metadata, which takes longer than the console script may wait before it takes SIGINT and
+    SIGTERM over: :func:`multilayer.commands.console`.)
     """
+    if name == "__version__":
+        from multilayer.version import __version__
+
+        return __version__
     if name in __all__:
         from multilayer import api
 

@@ -33,7 +33,11 @@ The checks (:data:`CHECKS`):
     a short pressure pulse through a coarse channel (:data:`SCENE`, the
     layer on the lumen, or on a ``wave-membrane`` when it is thick) runs
     through :func:`multilayer.runner.loop.run_case` and its energy ledger closes:
-    ``summary.json`` energy.max_relative_residual ≤ :data:`LEDGER_TOL`.
+    ``summary.json`` energy.max_relative_residual ≤ :data:`LEDGER_TOL`
+    (a Ctrl-C or a SIGTERM that stops that run is no failed check: once
+    the run has stopped, :func:`check_layer` raises
+    :class:`~multilayer.plugin.interrupts.UserInterrupt`, a
+    ``KeyboardInterrupt``, or :class:`~multilayer.plugin.interrupts.Terminated`).
 
 The parameters are those given, else the record's ``example``, else values
 made up from the schema (inside the bounds).
@@ -53,6 +57,7 @@ import attrs
 from multilayer.case.casefile import validate_data
 from multilayer.geometry.contract import Geometry
 from multilayer.geometry.spaces import make_line_space
+from multilayer.plugin.interrupts import stopped
 from multilayer.plugin.problems import CaseError, check_params, check_value, describe
 from multilayer.plugin.records import LayerPlugin, Param
 from multilayer.plugin.registry import Registry
@@ -293,6 +298,8 @@ def _check_coupled_run(subject: _Subject, workdir: Path) -> list[str]:
         return [f"the scene is not a valid case: {p}" for p in exc.problems]
     out = workdir / f"check-{subject.name}"
     result = run_case(case, out, subject.registry)
+    if result.signal:  # Ctrl-C or SIGTERM, caught by the run: meant for whoever checks, not a failed check
+        raise stopped(result.signal)
     summary = json.loads((out / "summary.json").read_text())
     if result.status != "ok":
         return [f"the run failed: {result.reason}"]

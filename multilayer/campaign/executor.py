@@ -14,6 +14,13 @@ picklable).  How they run:
 * ``processes``: a pool of N spawned processes, when Dask is not installed
   (``pip install 'multilayer[dask]'``).
 
+A SIGINT or SIGTERM that stops the command (:mod:`multilayer.plugin.interrupts`)
+stops its runs too: queued ones never start, those in flight finish their
+step and stop, ``interrupted`` (a run here catches the signal itself;
+:func:`execute` tells Dask workers and pool processes), and the command's
+exception is raised again once they have (or after :data:`STOP_WAIT`
+seconds).  The runs that ended are kept in their folders.
+
 A worker builds its plugin registry from the installed plugins plus the
 ``--plugin`` modules: a ``.py`` file is shipped as its source text
 (:class:`Plugin`), a dotted module name must be importable on the worker.
@@ -30,20 +37,26 @@ import json
 import logging
 import multiprocessing
 import os
+import signal
 import sys
 import uuid
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed, wait
+from contextlib import contextmanager
+from multiprocessing import resource_tracker
 from pathlib import Path
 from types import ModuleType
 
 import attrs
 
+from multilayer.campaign import dask_worker
 from multilayer.campaign.variants import run_variant
 from multilayer.case.casefile import load_case
+from multilayer.plugin.interrupts import deferred, signal_name, stopped
 from multilayer.plugin.loading import import_plugin
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, RegistryError
+from multilayer.runner.loop import RunResult, runs
 
 #: times Dask runs a job again after it raised (a dead worker is rescheduled by the scheduler itself,
 #: up to its ``distributed.scheduler.allowed-failures``)
@@ -55,6 +68,9 @@ RETRIES = 2
 #: fresh mmap: a run took 1.8x as long (measured, docs/sweeps.md).  None unsets it (the worker threads stay 1
 #: BLAS thread each, Dask's default).
 WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+#: seconds the command, stopped by a signal, waits for its runs in flight to finish their step and stop
+STOP_WAIT = 60.0
 
 
 class ExecutorError(Exception):
@@ -124,22 +140,29 @@ def worker_registry(plugins: tuple[Plugin, ...]) -> Registry:
     return _REGISTRIES[key]
 
 
-def run_job(job: Job, registry: Registry) -> tuple[str, str]:
-    """Run one job into its folder with ``registry``: (status, reason); never raises for a run's failure."""
+def run_job(job: Job, registry: Registry) -> RunResult:
+    """Run one job into its folder with ``registry``: its result; never raises for a run's failure."""
     try:
         case = load_case(job.case_file, job.overrides, registry)
     except CaseError as exc:  # validated before; only a plugin or file that changed in between gets here
-        return "failed", f"invalid case: {exc}"
+        return RunResult("failed", f"invalid case: {exc}", job.folder)
+    name = _pool_signals[0] if _pool_signals else dask_worker.stopped_here()  # its command was stopped meanwhile
+    if name is not None:
+        return RunResult("interrupted", f"interrupted by {name} before its first step", job.folder, signal=name)
     return run_variant(case, job.folder, registry)
 
 
 def run_shipped(job: Job, plugins: tuple[Plugin, ...]) -> tuple[str, str]:
-    """A worker's entry point: the registry of ``plugins`` (:func:`worker_registry`), then :func:`run_job`."""
+    """A worker's entry point: the registry of ``plugins`` (:func:`worker_registry`), then :func:`run_job`:
+    (status, reason)."""
     try:
         registry = worker_registry(plugins)
     except RegistryError as exc:
         return "failed", f"plugins on the worker: {exc}"
-    return run_job(job, registry)
+    result = run_job(job, registry)
+    if result.signal and _pool_process:  # the run caught it: the command is being stopped
+        _pool_signals.append(result.signal)
+    return result.status, result.reason
 
 
 def dask_installed() -> bool:
@@ -231,7 +254,10 @@ def execute(jobs: Sequence[Job], workers: int, registry: Registry, plugins: Sequ
         jobs = [attrs.evolve(j, case_file=Path(j.case_file).resolve(), folder=Path(j.folder).resolve()) for j in jobs]
     if way == "serial":
         for job in jobs:
-            progress.finished(job, *run_job(job, registry), slots=1)
+            result = run_job(job, registry)
+            progress.finished(job, result.status, result.reason, slots=1)
+            if result.signal:  # the run caught the signal meant for the command, and stopped: so does the command
+                raise stopped(result.signal)
     elif way == "dask":
         _on_dask(jobs, workers, ship_plugins(plugins), progress, scheduler)
     else:
@@ -239,16 +265,68 @@ def execute(jobs: Sequence[Job], workers: int, registry: Registry, plugins: Sequ
     return progress.results
 
 
+#: the signals a pool process got (while it ran a run, or not): it starts no run after one
+_pool_signals: list[str] = []
+_pool_process = False  #: this process is a pool's (:func:`_pool_process_start`)
+
+
+def _pool_process_start() -> None:
+    """A pool process's SIGINT and SIGTERM outside a run (a run catches both itself): :func:`_pool_signal`."""
+    global _pool_process
+    _pool_process = True
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _pool_signal)
+
+
+def _pool_signal(signum: int, frame: object) -> None:
+    """A Ctrl-C reaches every process of the terminal's group, and the command stops the pool's runs and passes
+    its signal on (:func:`_stop_processes`): a pool process records the signal and starts no run after it (the
+    idle one would otherwise die of SIGINT with a traceback); SIGTERM ends an idle one, as by default."""
+    _pool_signals.append(signal.Signals(signum).name)
+    if signum == signal.SIGTERM and not runs():
+        os._exit(128 + signum)
+
+
 def _on_processes(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], progress: Progress) -> None:
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        futures = {pool.submit(run_shipped, job, plugins): job for job in jobs}
+    slots = min(workers, len(jobs))
+    pool = ProcessPoolExecutor(max_workers=slots, mp_context=context, initializer=_pool_process_start)
+    futures = {pool.submit(run_shipped, job, plugins): job for job in jobs}
+    try:
         for future in as_completed(futures):
-            try:
-                status, reason = future.result()
-            except Exception as exc:  # the worker died (out of memory, killed): that run failed
-                status, reason = "failed", f"{type(exc).__name__}: {exc}"
-            progress.finished(futures[future], status, reason, min(workers, len(jobs)))
+            _finished(future, futures[future], progress, slots)
+    except BaseException as exc:
+        for future in futures:  # here, not in the pool's thread as shutdown would: then waited for below
+            future.cancel()
+        pool.shutdown(wait=False, cancel_futures=True)
+        name = signal_name(exc)
+        if name is not None:
+            _stop_processes(futures, name, progress, slots)
+        raise
+    pool.shutdown()
+
+
+def _finished(future: Future, job: Job, progress: Progress, slots: int) -> None:
+    try:
+        status, reason = future.result()
+    except Exception as exc:  # the worker died (out of memory, killed) or was lost: that run failed
+        status, reason = "failed", f"{type(exc).__name__}: {exc}"
+    progress.finished(job, status, reason, slots)
+
+
+def _stop_processes(futures: dict[Future, Job], name: str, progress: Progress, slots: int) -> None:
+    """The command was stopped by the signal ``name`` (its pool shut down, the queued runs cancelled): pass the
+    signal on to the pool's processes (a run stops after its step, a process starts no run after it:
+    :func:`_pool_signal`) and wait for the runs in flight, at most :data:`STOP_WAIT` seconds."""
+    for child in multiprocessing.active_children():  # the pool's (this process starts no other on this path)
+        try:
+            os.kill(child.pid, signal.Signals[name])
+        except OSError:  # it has just ended
+            pass
+    done, _ = wait([f for f in futures if not f.done()], timeout=STOP_WAIT)
+    for future in done:  # an idle process that SIGTERM ended broke the pool: those runs' folders say how they ended
+        if not future.cancelled() and future.exception() is None:
+            _finished(future, futures[future], progress, slots)
 
 
 def _on_dask(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], progress: Progress,
@@ -260,36 +338,83 @@ def _on_dask(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], pro
     import dask
     import distributed
 
-    cluster = None
+    cluster = client = None
     environ = dict(os.environ)  # a local nanny writes its workers' variables into this process's environment
+    quiet = logging.getLogger("distributed")  # the scheduler's and the nannies' of a local cluster, the client's
+    level = quiet.level
     try:
-        if scheduler is None:
-            with dask.config.set(WORKER_CONFIG):
-                cluster = distributed.LocalCluster(n_workers=min(workers, len(jobs)), threads_per_worker=1,
-                                                   processes=True, dashboard_address=None,
-                                                   silence_logs=logging.ERROR)
-        client = distributed.Client(cluster if cluster is not None else scheduler, timeout="20s")
-    except (OSError, TimeoutError) as exc:
-        if cluster is not None:
-            cluster.close()
-            _restore_environment(environ)
-        where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
-        raise ExecutorError(f"cannot reach {where}: {exc}") from None
-    try:
+        try:
+            with deferred(), _signals_blocked():  # a signal meanwhile: once the cluster is up, to be closed whole
+                if scheduler is None:
+                    with dask.config.set(WORKER_CONFIG):
+                        cluster = distributed.LocalCluster(n_workers=min(workers, len(jobs)), threads_per_worker=1,
+                                                           processes=True, dashboard_address=None,
+                                                           silence_logs=logging.ERROR,
+                                                           preload=[dask_worker.__name__])
+                client = distributed.Client(cluster if cluster is not None else scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
+            raise ExecutorError(f"cannot reach {where}: {exc}") from None
         futures = {client.submit(run_shipped, job, plugins, pure=False, retries=RETRIES,
                                  key=f"multilayer-{i}-{uuid.uuid4().hex[:12]}"): job for i, job in enumerate(jobs)}
-        for future in distributed.as_completed(futures):
-            try:
-                status, reason = future.result()
-            except Exception as exc:  # killed too often, or lost: that run failed, the others go on
-                status, reason = "failed", f"{type(exc).__name__}: {exc}"
-            slots = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
-            progress.finished(futures[future], status, reason, max(1, slots))
+        try:
+            for future in distributed.as_completed(futures):
+                slots = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
+                _finished(future, futures[future], progress, max(1, slots))
+        except BaseException as exc:
+            name = signal_name(exc)
+            if name is not None:
+                quiet.setLevel(logging.CRITICAL)  # a worker ending meanwhile is expected now, not an error to log
+                _stop_on_dask(client, futures, name, progress)
+            raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            if client is not None:
+                client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            quiet.setLevel(level)
             _restore_environment(environ)
+
+
+@contextmanager
+def _signals_blocked() -> Iterator[None]:
+    """SIGINT and SIGTERM blocked in this thread for the block, and so in the threads it starts and the processes
+    those start: the embedded cluster's nannies start its workers with both blocked, so a Ctrl-C or a SIGTERM to
+    the whole process group cannot end a worker while it starts (with a traceback); its preload
+    (:func:`multilayer.campaign.dask_worker.dask_setup`) installs its handlers, then unblocks them (as
+    ``multiprocessing`` starts its resource tracker).  The tracker is started first: starting it unblocks both
+    in the thread that does."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    resource_tracker.ensure_running()
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
+def _stop_on_dask(client, futures: dict, name: str, progress: Progress) -> None:
+    """The command was stopped by the signal ``name``: stop the runs the workers hold
+    (:func:`multilayer.campaign.dask_worker.stop_tasks`: each finishes its step), cancel the others and wait
+    for the stopped ones, at most :data:`STOP_WAIT` seconds.  Best effort: a run that does not stop here is one
+    the next submission runs again."""
+    import distributed
+
+    flight = [f for f in futures if not f.done()]
+    try:
+        held = client.run(dask_worker.stop_tasks, [f.key for f in flight], name, on_error="ignore")
+        held = {key for keys in held.values() for key in keys}
+        client.cancel([f for f in flight if f.key not in held])
+        stopping = [f for f in flight if f.key in held]
+        distributed.wait(stopping, timeout=STOP_WAIT)
+    except Exception:  # a worker lost meanwhile, the wait timed out: the cluster is closed all the same
+        return
+    for future in stopping:
+        _finished(future, futures[future], progress, len(stopping))
 
 
 def _restore_environment(saved: dict[str, str]) -> None:

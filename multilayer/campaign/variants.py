@@ -20,7 +20,7 @@ from multilayer.case.casefile import load_case
 from multilayer.case.keys import key_steps, parse_value, parse_vary
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
-from multilayer.runner.loop import run_case
+from multilayer.runner.loop import RunResult, run_case
 
 #: snapshots per run when a case writes none (the space–time plot needs them)
 SNAPSHOTS = 100
@@ -130,15 +130,14 @@ def invalid_message(command: str, variants: Sequence[Variant], invalid: Mapping[
     return "\n".join(lines)
 
 
-def run_variant(case: Any, folder: Path, registry: Registry) -> tuple[str, str]:
-    """Run a validated case into ``folder``: (status, reason).
+def run_variant(case: Any, folder: Path, registry: Registry) -> RunResult:
+    """Run a validated case into ``folder``: its result (``status``, ``reason``, the ``signal`` that stopped it).
 
     A run that raises (a bug, not a failed run) is printed with its
     traceback and returned as failed, so the other variants still run.
     """
     try:
-        result = run_case(case, folder, registry)
+        return run_case(case, folder, registry)
     except Exception as exc:  # keep the other variants; the traceback says where
         traceback.print_exc()
-        return "failed", f"{type(exc).__name__}: {exc}"
-    return result.status, result.reason
+        return RunResult("failed", f"{type(exc).__name__}: {exc}", folder)

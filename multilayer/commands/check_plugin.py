@@ -36,7 +36,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def check_plugin(options: CheckPluginOptions) -> int:
-    """``multilayer check-plugin NAME``: 0 when every check passes, 1 when one fails, 2 for an unknown name."""
+    """``multilayer check-plugin NAME``: 0 when every check passes, 1 when one fails, 2 for an unknown name (130, 143
+    stopped by SIGINT, SIGTERM: :mod:`multilayer.commands`)."""
     registry, name = options.registry, options.name
     found = registry.find("layer", name)
     if found is None:

@@ -2,7 +2,9 @@
 
 Exit codes: :data:`OK` 0, :data:`FAILED` 1 a run that failed, :data:`INVALID`
 2 an invalid case, command line or plugin set (the problems on stderr, one
-per line, without a traceback), :data:`INTERRUPTED` 130.
+per line, without a traceback), :data:`INTERRUPTED` 130 stopped by SIGINT
+(Ctrl-C) and :data:`TERMINATED` 143 by SIGTERM, as a shell reports them
+(:func:`multilayer.plugin.interrupts.exit_code`), after one line on stderr.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from multilayer.plugin.problems import CaseError, Problem
 
 OK, FAILED, INVALID = 0, 1, 2
 INTERRUPTED = 130  #: 128 + SIGINT, as a shell reports an interrupted command
+TERMINATED = 143  #: 128 + SIGTERM
 
 
 def case_options(p: argparse.ArgumentParser) -> None:

@@ -66,7 +66,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def compare(options: CompareOptions) -> int:
-    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary, --jobs) is invalid."""
+    """``multilayer compare``: 0 all ran, 1 a variant failed, 2 a variant (or --vary, --jobs) is invalid (130, 143
+    stopped by SIGINT, SIGTERM: :mod:`multilayer.campaign.executor` stops the runs)."""
     if options.jobs < 1:
         return invalid("compare: invalid command line",
                        [Problem("--jobs", options.jobs, "expected an integer >= 1 (runs at once)")])

@@ -1,8 +1,10 @@
 """The ``multilayer`` command: run, resume, plot, validate, plugins, check-plugin, compare, study, stability, sweep.
 
 Exit codes: 0 ok, 1 a run that failed, 2 an invalid case or plugin set
-(the problems on stderr, one per line, without a traceback); see
-:mod:`multilayer.commands.common`.
+(the problems on stderr, one per line, without a traceback), 130 stopped
+by SIGINT (Ctrl-C), 143 by SIGTERM (one line on stderr; a run finishes its
+step and writes its summary first, and so do a campaign's runs in flight); see
+:mod:`multilayer.commands.common` and :mod:`multilayer.commands`.
 
     multilayer validate cases/pulse.toml --set time.dt=5e-5
     multilayer run cases/pulse.toml --out results/pulse
@@ -73,5 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return INVALID
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # python -m multilayer.commands.main: as the console script, once this module is read
+    from multilayer.commands import console
+
+    sys.exit(console())

@@ -14,7 +14,6 @@ from multilayer.case.casefile import load_case
 from multilayer.case.model import Case
 from multilayer.commands.common import (
     FAILED,
-    INTERRUPTED,
     INVALID,
     OK,
     case_options,
@@ -23,6 +22,7 @@ from multilayer.commands.common import (
     run_options,
 )
 from multilayer.commands.plot import plot_folder
+from multilayer.plugin.interrupts import exit_code
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 from multilayer.results.folder import ResultsError
@@ -62,7 +62,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(options: RunOptions) -> int:
-    """``multilayer run``: 0 the run ended ok, 1 it failed, 2 an invalid case or option, 130 interrupted."""
+    """``multilayer run``: 0 the run ended ok, 1 it failed, 2 an invalid case or option, 130 interrupted by SIGINT
+    (Ctrl-C), 143 by SIGTERM."""
     if options.out is None:
         print("run: --out is empty: name the results folder", file=sys.stderr)
         return INVALID
@@ -117,7 +118,7 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
         return INVALID
     except loop.Interrupted as exc:  # before the folder was touched (a resume's setup)
         print(f"resume: interrupted by {exc} while setting up; {out} is as it was", file=sys.stderr)
-        return INTERRUPTED
+        return exit_code(str(exc))
     except Exception:  # a bug, not a user mistake: the traceback helps
         traceback.print_exc()
         print(f"run failed; partial results in {out}", file=sys.stderr)
@@ -130,7 +131,9 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
     if not quiet:
         print(progress.summary(result, time.perf_counter() - t0, out, checkpoint=checkpoint.exists(out)))
     if result.status == "interrupted":
-        return INTERRUPTED
+        print(f"{'run' if case is not None else 'resume'}: {result.reason}; the results so far are in {out}"
+              + (f", continue with: multilayer resume {out}" if checkpoint.exists(out) else ""), file=sys.stderr)
+        return exit_code(result.signal)
     if result.status != "ok":
         print(f"run failed: {result.reason}", file=sys.stderr)
         return FAILED

@@ -93,7 +93,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def stability(options: StabilityOptions) -> int:
-    """``multilayer stability``: 0 the map is made (failed runs are results), 2 invalid input."""
+    """``multilayer stability``: 0 the map is made (failed runs are results), 2 invalid input (130, 143 stopped by
+    SIGINT, SIGTERM: :mod:`multilayer.campaign.executor` stops the runs)."""
     o = options
     try:
         choices, axes, problems = grid_options(o.case, o.out, o.couplers, o.varies, o.jobs, o.overrides, o.registry)

@@ -91,7 +91,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def study(options: StudyOptions) -> int:
-    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input.
+    """``multilayer study``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input (130, 143
+    stopped by SIGINT, SIGTERM: :mod:`multilayer.campaign.executor` stops the runs).
 
     With ``--reference-set`` and no ``--reference``, the reference is the
     case file with those overrides; ``--reuse`` keeps finished runs of the

@@ -84,7 +84,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def sweep(options: SweepOptions) -> int:
-    """``multilayer sweep``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input."""
+    """``multilayer sweep``: 0 every run ok, 1 a run failed (the report is written), 2 invalid input (130, 143
+    stopped by SIGINT, SIGTERM: :mod:`multilayer.campaign.executor` stops the runs; the same command runs the rest)."""
     o = options
     problems = []
     if o.jobs < 1:

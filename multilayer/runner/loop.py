@@ -55,7 +55,7 @@ from multilayer.scene.state import State
 from multilayer.version import __version__
 
 __all__ = ["EnergyBound", "Interrupted", "RunFailed", "RunResult", "Signals", "Tally", "check_state", "interruptible",
-           "resume_run", "run_case", "run_held"]
+           "resume_run", "run_case", "run_held", "runs", "stop"]
 
 
 def _snapshot(setup: Setup, state: State, results: ResultsFolder | HeldResults) -> None:
@@ -78,6 +78,9 @@ class RunResult:
     peaks: dict = attrs.field(factory=dict)  #: max |value| of every η probe
     #: the volume ledger's drift over the volume moved (None without a fluid)
     volume_drift: float | None = None
+    #: the signal that stopped an interrupted run (``SIGINT``, ``SIGTERM``; the one its ``reason`` names, also when
+    #: :func:`stop` gave it); empty for a run that was not interrupted
+    signal: str = ""
 
 
 class Interrupted(Exception):
@@ -85,7 +88,7 @@ class Interrupted(Exception):
 
 
 class Signals:
-    """The SIGINT and SIGTERM a run has caught; call it for the first one's name (or None).
+    """The SIGINT and SIGTERM a run has caught (or :func:`stop` gave it); call it for the first one's name (or None).
 
     A first signal lets the current step finish.  A second SIGINT abandons
     the step, unless it comes while the run writes its files (:meth:`writing`)
@@ -118,24 +121,59 @@ class Signals:
             self._writing -= 1
 
 
+#: the :class:`Signals` of every run going on in this process, by the thread that runs it (see :func:`stop`)
+_RUNS: dict[int, Signals] = {}
+
+
 @contextmanager
 def interruptible() -> Iterator[Signals]:
     """Catch SIGINT and SIGTERM while a run goes on; yields the :class:`Signals` caught.
 
     Installed before the results folder is made and kept until its summary
     is written, so a signal at any moment of a run is caught.  Handlers are
-    installed only in the main thread (elsewhere nothing changes: nothing is caught).
+    installed only in the main thread; a run in another thread (a Dask
+    worker's) catches no signal, and whoever runs it stops it with :func:`stop`.
     """
     signals = Signals()
-    if threading.current_thread() is not threading.main_thread():
-        yield signals
-        return
-    old = {sig: signal.signal(sig, signals.handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    thread = threading.get_ident()
+    outer = _RUNS.get(thread)  # a run started by a run's progress callback: the outer one goes on after
+    _RUNS[thread] = signals
     try:
-        yield signals
+        if threading.current_thread() is not threading.main_thread():
+            yield signals
+            return
+        old = {sig: signal.signal(sig, signals.handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield signals
+        finally:
+            for sig, h in old.items():
+                signal.signal(sig, h)
     finally:
-        for sig, h in old.items():
-            signal.signal(sig, h)
+        if outer is None:
+            del _RUNS[thread]
+        else:
+            _RUNS[thread] = outer
+
+
+def stop(name: str, thread: int | None = None) -> list[int]:
+    """Stop the run that the thread ``thread`` (its ``threading.get_ident()``) of this process runs, or every run
+    of this process, as the signal ``name`` (``SIGINT``, ``SIGTERM``) would: it finishes its step and stops,
+    ``interrupted``.  The threads whose runs were told.
+
+    Meant for a run in a thread other than the main one, which catches no signal itself (a Dask worker's:
+    :mod:`multilayer.campaign.dask_worker`).  Any thread may call it.
+    """
+    told = [t for t in list(_RUNS) if thread is None or t == thread]
+    for t in told:
+        signals = _RUNS.get(t)
+        if signals is not None:
+            signals.caught.append(name)
+    return told
+
+
+def runs() -> list[int]:
+    """The threads of this process that run a run now (see :func:`stop`)."""
+    return list(_RUNS)
 
 
 def run_case(case: Case, out: str | Path, registry: Registry | None = None, *, checkpoint_every: int = 0,
@@ -203,7 +241,7 @@ def resume_run(out: str | Path, until: float | None = None, registry: Registry |
 def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, saved: checkpoint.Checkpoint | None,
          checkpoint_every: int, progress, signals: Signals, prepared: tuple | None = None) -> RunResult:
     wall_t0 = time.perf_counter()
-    status, reason, crash = "ok", "", ""
+    status, reason, crash, stopped_by = "ok", "", "", ""
     setup: Setup | None = None
     coupler: Coupler | None = None
     tally: Tally | None = saved.tally if saved is not None else None
@@ -240,7 +278,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
             if signals():
                 raise Interrupted(signals())
     except Interrupted as exc:
-        status = "interrupted"
+        status, stopped_by = "interrupted", str(exc)
         reason = f"interrupted by {exc} after step {tally.steps if tally else 0} (t = {tally.t if tally else 0:.6g} s)"
     except (RunFailed, SchemeFailure) as exc:
         status, reason = "failed", str(exc)
@@ -290,7 +328,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     finally:
         results.release()
     return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks),
-                     tally.volume.relative_drift if tally.volume is not None else None)
+                     tally.volume.relative_drift if tally.volume is not None else None, stopped_by)
 
 
 class Writers:
