@@ -394,7 +394,7 @@ def test_a_formula_finite_on_its_domain_is_valid(tmp_path, capsys):
 def test_power_towers_are_refused_at_once(tmp_path, expr):
     # as exact integers these never finish: the check runs in a process with a deadline
     path = write_case(tmp_path, None)
-    done = subprocess.run([sys.executable, "-m", "multilayer.commands.main", "validate", str(path),
+    done = subprocess.run([sys.executable, "-m", "multilayer.commands", "validate", str(path),
                            "--set", f'loads.interface="{expr}"'], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "an overflow" in done.stderr and "Traceback" not in done.stderr
 
@@ -500,7 +500,7 @@ def test_cli_cross_field_constraint_of_a_real_plugin(tmp_path, capsys):
 
 def test_console_entry_point_exits_2_without_traceback(tmp_path):
     path = write_case(tmp_path, ("poisson = 0.45", "poisson = 0.5"))
-    done = subprocess.run([sys.executable, "-m", "multilayer.commands.main", "validate", str(path)],
+    done = subprocess.run([sys.executable, "-m", "multilayer.commands", "validate", str(path)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert "layers[0].poisson = 0.5" in done.stderr and "Traceback" not in done.stderr + done.stdout

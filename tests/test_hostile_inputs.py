@@ -177,7 +177,7 @@ def test_a_case_file_that_is_not_utf8(tmp_path, capsys):
 
 
 def _in_a_process(args, cwd):
-    return subprocess.run([sys.executable, "-m", "multilayer.commands.main", *map(str, args)], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "multilayer.commands", *map(str, args)], cwd=cwd,
                           capture_output=True, text=True, timeout=20)
 
 

@@ -71,7 +71,7 @@ def test_the_console_script_warns_once_and_runs(site):
     import os
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
-    done = subprocess.run([sys.executable, "-m", "multilayer.commands.main", "plugins", "koiter-shell"], env=env,
+    done = subprocess.run([sys.executable, "-m", "multilayer.commands", "plugins", "koiter-shell"], env=env,
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and "young" in done.stdout
     assert done.stderr.count("warning: plugin entry point") == 3 and "Traceback" not in done.stderr

@@ -245,7 +245,7 @@ def test_a_sweep_on_two_local_dask_workers_survives_a_worker_killed_mid_run(tmp_
     case = with_sweep(tmp_path, GRID)
     out = tmp_path / "out"
     argv = ["sweep", str(case), "--out", str(out), "--jobs", "2", *sets(*SMALL)]
-    process = subprocess.Popen([sys.executable, "-m", "multilayer.commands.main", *argv], stdout=subprocess.PIPE,
+    process = subprocess.Popen([sys.executable, "-m", "multilayer.commands", *argv], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
         folder, pid = _kill_a_run_in_flight(out, time.monotonic() + 60)

@@ -348,7 +348,8 @@ def _on_dask(jobs: Sequence[Job], workers: int, plugins: tuple[Plugin, ...], pro
                 if scheduler is None:
                     with dask.config.set(WORKER_CONFIG):
                         cluster = distributed.LocalCluster(n_workers=min(workers, len(jobs)), threads_per_worker=1,
-                                                           processes=True, dashboard_address=None,
+                                                           processes=True, dashboard_address=":0",
+                                                           scheduler_kwargs={"dashboard": False},
                                                            silence_logs=logging.ERROR,
                                                            preload=[dask_worker.__name__])
                 client = distributed.Client(cluster if cluster is not None else scheduler, timeout="20s")

@@ -73,9 +73,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RegistryError as exc:
         print(f"plugins: {exc}", file=sys.stderr)
         return INVALID
-
-
-if __name__ == "__main__":  # python -m multilayer.commands.main: as the console script, once this module is read
-    from multilayer.commands import console
-
-    sys.exit(console())
