@@ -27,11 +27,22 @@ The checks (:data:`CHECKS`):
     on small spaces of order 1 and 2, mass, damping and stiffness are scipy
     sparse matrices of the space's shape, finite, real, symmetric and
     positive semi-definite (smallest eigenvalue ≥ −1e-10 × the largest);
+``forces``
+    on the same spaces, at :data:`FORCE_STATES` random states (d, v): the
+    tangent K_T(d) against central differences of the force f, the force
+    against central differences of the stored energy W (its gradient), the
+    damping tangent against differences of the damping force g, the
+    dissipation Δt v·g(v) ≥ 0, K_T symmetric, and at rest the tangents equal
+    the forms' stiffness and damping; the forms are linear as the layer
+    declares (``linear``).  A linear layer's forms pass by construction
+    (f = K d); the check is for a nonlinear one's
+    (:class:`~multilayer.wall.layer.NonlinearForms`);
 ``essential-dofs``
     integers within the space;
 ``coupled-run``
     a short pressure pulse through a coarse channel (:data:`SCENE`, the
-    layer on the lumen, or on a ``wave-membrane`` when it is thick) runs
+    layer on the lumen, or on a ``wave-membrane`` when it is thick; under
+    ``monolithic`` when the layer is nonlinear, :data:`NONLINEAR_COUPLER`) runs
     through :func:`multilayer.runner.loop.run_case` and its energy ledger closes:
     ``summary.json`` energy.max_relative_residual ≤ :data:`LEDGER_TOL`
     (a Ctrl-C or a SIGTERM that stops that run is no failed check: once
@@ -53,6 +64,8 @@ from pathlib import Path
 from typing import Any
 
 import attrs
+import numpy as np
+import scipy.sparse as sp
 
 from multilayer.case.casefile import validate_data
 from multilayer.geometry.contract import Geometry
@@ -65,17 +78,20 @@ from multilayer.runner.loop import run_case
 from multilayer.wall.checks import (
     abstract_problem,
     essential_problems,
+    linearity_problem,
     matrix_problems,
     raised,
+    state_problems,
     type_problem,
 )
-from multilayer.wall.layer import Layer
+from multilayer.wall.layer import Layer, LayerMatrices
 from multilayer.wall.stack import WallSpace
 
-__all__ = ["CHECKS", "CheckResult", "LayerConformance", "assert_layer_conforms", "check_layer", "example_params"]
+__all__ = ["CHECKS", "CheckResult", "LayerConformance", "assert_layer_conforms", "check_layer", "example_params",
+           "force_problems"]
 
 #: The checks, in the order they run.
-CHECKS = ("schema", "build", "matrices", "essential-dofs", "coupled-run")
+CHECKS = ("schema", "build", "matrices", "forces", "essential-dofs", "coupled-run")
 #: Largest relative residual of the energy ledger the coupled run may have.
 LEDGER_TOL = 1e-9
 #: The coupled scene: a pressure pulse through a coarse channel, 10 steps (layers filled in per layer).
@@ -88,6 +104,18 @@ SCENE: dict[str, Any] = {
     "coupler": {"model": "kinematic-splitting"},
     "loads": {"inlet": {"kind": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
 }
+#: The coupler of the coupled scene for a nonlinear layer (the splitting's default wall impedance needs a linear
+#: wall): fluid and wall in one system, iterated by Newton's method.
+NONLINEAR_COUPLER = {"model": "monolithic"}
+#: Random states (d, v) of the ``forces`` check, per small space.
+FORCE_STATES = 3
+#: Their size: displacements of 10 % of the small spaces' radius (cm), velocities of 1 cm/s.
+STATE_SIZE = (0.05, 1.0)
+#: The central differences' step, relative to the state: (f(d + h w) − f(d − h w))/2h with |h w| = 1e-4 |d|.
+DIFFERENCE_STEP = 1e-4
+#: What a tangent or force may differ from the central difference of its force or energy, relative to their size
+#: (the differences' own error is ~1e-8 for a force that varies on the scale of the state, round-off ~1e-12).
+DIFFERENCE_TOL = 1e-6
 #: The thin layer a thick one is put behind in the coupled scene (the kinematic splitting needs one at the fluid).
 LUMEN_LAYER = {"model": "wave-membrane", "density": 1.1, "thickness": 0.02, "tension": 2.0e4}
 #: The small spaces of the matrix checks: length, radius, cells along z (and radial cells of a band).
@@ -262,6 +290,90 @@ def _check_matrices(subject: _Subject, workdir: Path) -> list[str]:
     return _on_small_spaces(subject, check)
 
 
+def _check_forces(subject: _Subject, workdir: Path) -> list[str]:
+    def check(layer: Layer, space: Any) -> list[str]:
+        try:
+            forms = layer.forms(space)
+        except Exception as exc:  # the plugin's own code
+            return [f"forms raised {raised(exc)}"]
+        if not isinstance(forms, LayerMatrices):
+            return ["not checked: forms did not return LayerMatrices (see matrices)"]
+        problem = linearity_problem(layer, forms)
+        return [problem] if problem else force_problems(forms, space.ndofs)
+
+    return _on_small_spaces(subject, check)
+
+
+def force_problems(forms: LayerMatrices, n: int, seed: int = 0) -> list[str]:
+    """What is wrong with the forces of ``forms`` on ``n`` DOFs at :data:`FORCE_STATES` random states.
+
+    The forces of a :class:`~multilayer.wall.layer.LayerMatrices` pass:
+
+    >>> I = sp.identity(3, format="csr")
+    >>> force_problems(LayerMatrices(I, I, 2.0 * I), 3)
+    []
+    """
+    rng = np.random.default_rng(seed)
+    size_d, size_v = STATE_SIZE
+    h = DIFFERENCE_STEP
+    problems = state_problems(forms, n)
+    if problems:
+        return problems
+    zero = np.zeros(n)
+    for name, tangent, matrix in (("tangent", forms.tangent(zero), forms.stiffness),
+                                  ("damping_tangent", forms.damping_tangent(zero), forms.damping)):
+        gap = _gap(tangent, matrix)
+        if gap > DIFFERENCE_TOL:
+            part = "stiffness" if name == "tangent" else "damping"
+            problems.append(f"{name} at rest differs from the forms' {part} by {gap:.3g} of its size (the matrices "
+                            "are the tangents at rest)")
+    for _ in range(FORCE_STATES):
+        d, w = size_d * rng.standard_normal(n), size_d * rng.standard_normal(n)
+        v, u = size_v * rng.standard_normal(n), size_v * rng.standard_normal(n)
+        found = state_problems(forms, n, d, v)
+        if found:
+            return problems + found
+        f, K = forms.force(d), sp.csr_matrix(forms.tangent(d))
+        difference = (forms.force(d + h * w) - forms.force(d - h * w)) / (2 * h)
+        error, scale = np.linalg.norm(K @ w - difference), np.linalg.norm(K @ w) + np.linalg.norm(f)
+        if not error <= DIFFERENCE_TOL * scale:
+            problems.append(f"the tangent is not the derivative of the force: |K_T(d) w − (f(d + hw) − f(d − hw))/2h| "
+                            f"= {error:.3g} against {scale:.3g} (|K_T w| + |f|) at a random state d of size "
+                            f"{size_d:g} cm")
+        energy = (forms.elastic(d + h * w) - forms.elastic(d - h * w)) / (2 * h)
+        error, scale = abs(energy - float(f @ w)), np.linalg.norm(f) * np.linalg.norm(w)
+        if not error <= DIFFERENCE_TOL * scale:
+            problems.append(f"the force is not the gradient of the energy: |f(d)·w − (W(d + hw) − W(d − hw))/2h| = "
+                            f"{error:.3g} against {scale:.3g} (|f| |w|) at a random state d of size {size_d:g} cm")
+        asymmetry = _gap(K, K.T)
+        if asymmetry > DIFFERENCE_TOL:
+            problems.append(f"the tangent is not symmetric at a random state (|K_T − K_Tᵀ| = {asymmetry:.3g} of |K_T|): "
+                            "the force is not the gradient of an energy")
+        g, C = forms.damping_force(v), sp.csr_matrix(forms.damping_tangent(v))
+        difference = (forms.damping_force(v + h * u) - forms.damping_force(v - h * u)) / (2 * h)
+        error, scale = np.linalg.norm(C @ u - difference), np.linalg.norm(C @ u) + np.linalg.norm(g)
+        if not error <= DIFFERENCE_TOL * scale:
+            problems.append(f"the damping tangent is not the derivative of the damping force: |C_T(v) u − "
+                            f"(g(v + hu) − g(v − hu))/2h| = {error:.3g} against {scale:.3g}")
+        power, taken = float(v @ g), forms.dissipation(v, 1.0)
+        negative = power < -1e-12 * np.linalg.norm(v) * np.linalg.norm(g)
+        if not abs(taken - power) <= 1e-10 * (abs(power) + abs(taken)) or negative:
+            problems.append(f"the dissipation of a step of 1 s at a random velocity is {taken:.6g}, where v·g(v) = "
+                            f"{power:.6g} (it must be that, and ≥ 0)")
+        if problems:
+            return problems
+    return problems
+
+
+def _gap(A: Any, B: Any) -> float:
+    """max |A − B| relative to max(|A|, |B|) (0 for two zero matrices)."""
+    A, B = sp.csr_matrix(A), sp.csr_matrix(B)
+    scale = max(abs(A).max() if A.nnz else 0.0, abs(B).max() if B.nnz else 0.0)
+    diff = (A - B)
+    gap = abs(diff).max() if diff.nnz else 0.0
+    return float(gap / scale) if scale > 0 else float(gap)
+
+
 def _check_essential(subject: _Subject, workdir: Path) -> list[str]:
     def check(layer: Layer, space: Any) -> list[str]:
         try:
@@ -273,8 +385,9 @@ def _check_essential(subject: _Subject, workdir: Path) -> list[str]:
     return _on_small_spaces(subject, check)
 
 
-def scene(name: str, params: Mapping[str, Any], thin: bool) -> dict[str, Any]:
-    """The case data of the coupled scene with the layer ``name`` on the lumen (behind a membrane when thick).
+def scene(name: str, params: Mapping[str, Any], thin: bool, linear: bool = True) -> dict[str, Any]:
+    """The case data of the coupled scene with the layer ``name`` on the lumen (behind a membrane when thick),
+    under :data:`NONLINEAR_COUPLER` when the layer is not ``linear``.
 
     >>> [layer["model"] for layer in scene("linear-elastic", {"thickness": 0.1}, thin=False)["layers"]]
     ['wave-membrane', 'linear-elastic']
@@ -282,6 +395,8 @@ def scene(name: str, params: Mapping[str, Any], thin: bool) -> dict[str, Any]:
     data = copy.deepcopy(SCENE)
     layer = {"model": name, **params}
     data["layers"] = [layer] if thin else [dict(LUMEN_LAYER), {**layer, "cells": 2}]
+    if not linear:
+        data["coupler"] = dict(NONLINEAR_COUPLER)
     return data
 
 
@@ -293,7 +408,8 @@ def _check_coupled_run(subject: _Subject, workdir: Path) -> list[str]:
     if not subject.record.thin and subject.registry.find("layer", LUMEN_LAYER["model"]) is None:
         return [f"not checked: the scene puts a thick layer behind {LUMEN_LAYER['model']!r}, which is not installed"]
     try:
-        case = validate_data(scene(subject.name, subject.params, subject.record.thin), workdir, subject.registry)
+        case = validate_data(scene(subject.name, subject.params, subject.record.thin, bool(layer.linear)), workdir,
+                             subject.registry)
     except CaseError as exc:
         return [f"the scene is not a valid case: {p}" for p in exc.problems]
     out = workdir / f"check-{subject.name}"
@@ -314,6 +430,7 @@ _RUNNERS: dict[str, Callable[[_Subject, Path], list[str]]] = {
     "schema": _check_schema,
     "build": lambda subject, workdir: subject.built()[1],
     "matrices": _check_matrices,
+    "forces": _check_forces,
     "essential-dofs": _check_essential,
     "coupled-run": _check_coupled_run,
 }
@@ -407,6 +524,9 @@ class LayerConformance:
 
     def test_matrices(self) -> None:
         self.assert_check("matrices")
+
+    def test_forces(self) -> None:
+        self.assert_check("forces")
 
     def test_essential_dofs(self) -> None:
         self.assert_check("essential-dofs")

@@ -83,7 +83,7 @@ class DirichletNeumann(ThickLumen, Coupler):
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         S, dt, fluid, wall = self.scheme, setup.dt, setup.fluid, setup.wall
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
-        structure = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver)
+        structure = StructureStep(setup.stack, S, dt, setup.stats("wall"), setup.case.solver, reuse=setup.case.reuse)
         ends = wall.lines[LUMEN].end_dofs
         # under no-slip the interface velocity x stacks the lumen's (v_r, v_z), and the fluid's force both components
         Rz = axial_restriction(setup) if self.no_slip(setup.case) else None

@@ -85,6 +85,11 @@ ROBINS = ("impedance", "inertia")
 THICK_LUMEN = ("its steps hand over the thin layer's radial motion on Γ (and, with robin = 'inertia', its Robin term "
                "is that layer's mass ρ₁h/Δt, without which it loses its added-mass stability), while a band at the "
                "fluid moves in both components")
+#: why the wall's impedance cannot take a nonlinear layer
+NONLINEAR_IMPEDANCE = ("the fluid step's Robin term is the wall step's response condensed on Γ, and A3 completes "
+                       "the wall's step by that response (one product with A⁻¹P), so that the wall moves with the "
+                       "fluid, V̄_Γ = v̄, which closes the ledger and the lumen's volume; a nonlinear wall's "
+                       "response depends on the load, and its step under the fluid's force would leave V̄_Γ ≠ v̄")
 #: why the paper's Robin term cannot take a prescribed inflow
 INERTIA_LEAK = ("its fluid step sees the wall as the thin layer's mass alone, so the fluid leaves through Γ faster "
                 "than the wall moves, by (ω₁Δt)² with ω₁² = k/(ρ₁h) the wall's stiffness over that mass, and the "
@@ -124,6 +129,12 @@ class KinematicSplitting(Coupler):
                          f"scheme) does not conserve: {INERTIA_LEAK}; remove coupler.robin (the default "
                          "'impedance' conserves it), or choose 'monolithic'"
                          for end in flow_rate_ends(case)]
+        else:
+            problems += [f"{layer.path} ('{layer.model}') is nonlinear, which {self.name} with robin = 'impedance' "
+                         f"cannot take: {NONLINEAR_IMPEDANCE}; set coupler.robin = 'inertia' (its structure step is "
+                         "a whole wall step, solved by Newton's method), or choose 'monolithic' or "
+                         "'dirichlet-neumann-implicit'"
+                         for layer in case.layers if not layer.linear]
         return problems
 
     def initial_state(self, setup) -> State:
@@ -161,7 +172,7 @@ class KinematicSplitting(Coupler):
         fluid, wall = setup.fluid, setup.wall
         adaptive = setup.case.time.adaptive
         a1 = StructureStep(setup.stack, self.scheme, setup.dt, setup.stats("wall"), setup.case.solver,
-                           fluid_line=LUMEN)
+                           fluid_line=LUMEN, reuse=setup.case.reuse)
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
         # per Δt the Robin matrix, the same object every step (its slots are looked up once), and with the

@@ -52,6 +52,7 @@ from multilayer.coupling.kit import (
 from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.numerics.assembly.pattern import Pattern
 from multilayer.numerics.linsolve import ReusingSolver
+from multilayer.numerics.newton import newton
 from multilayer.numerics.timescheme import SCHEMES, scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin
@@ -100,33 +101,74 @@ class Monolithic(ThickLumen, Coupler):
         glob = self.numbering(setup)
         n = fluid.ndofs + int(np.count_nonzero(glob >= fluid.ndofs))
         solver = ReusingSolver(setup.stats("monolithic"), setup.case.solver, setup.case.reuse)
-        held: dict = {"key": None, "layout": None}  # the wall's matrix of the last Δt and α, the system's layout
+        held: dict = {"key": None, "wall": None, "layout": None}  # a linear wall's matrix of the last Δt and α,
+        # the system's layout
 
         def advance(state: State, w: Window) -> tuple[State, StepReport]:
             S, dt, t0, t1 = w.scheme, w.dt, w.t0, w.t1
             structure = StructureStep(stack, S, dt, wall_stats)  # S: the step's ratio (BDF2's α)
-            if held["key"] != (dt, S.alpha):  # adaptive steps: the wall's matrix changes, its pattern does not
-                held["key"], held["wall"] = (dt, S.alpha), sp.coo_matrix(structure.matrix(dt))
-            A_wall, layout = held["wall"], held["layout"]
+            if stack.linear and held["key"] != (dt, S.alpha):  # adaptive steps: the wall's matrix changes, its
+                held["key"], held["wall"] = (dt, S.alpha), sp.coo_matrix(structure.matrix(dt))  # pattern does not
             loads = window_loads(setup, S, t0, t1)
             history = state.history(S.old_levels)
             prediction = predicted_domain(S, history, dt)
             system = fluid.system([x.fluid for x in history], prediction.domain, S, dt, (t0, t1))
             A_f, b_f, fixed_f, values_f = fluid.matrix(system)
-            if layout is None or not layout.fits(A_f, A_wall):
-                layout = held["layout"] = Layout(A_f, A_wall, glob, np.concatenate([fixed_f, glob[stack.fixed]]), n)
             forces = {"external": external_force(setup, loads["external"])}
-            data = layout.fill(A_f.data, A_wall.data)
-            b = np.zeros(n)
-            b[: fluid.ndofs] = b_f
-            np.add.at(b, glob, structure.rhs(history, forces, dt))
             x = np.zeros(n)
             x[fixed_f] = values_f
-            rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
-            x[layout.free] = solver.solve(layout.free_free.matrix(data, keep=True), rhs)
+            fixed = np.concatenate([fixed_f, glob[stack.fixed]])
+
+            def matrix(free_x):
+                """The system's matrix with the wall's tangent at ``free_x`` (its constant matrix when linear)."""
+                A_wall = held["wall"]
+                if not stack.linear:
+                    A_wall = sp.coo_matrix(structure.tangent(history, unknowns(free_x)[glob], dt))
+                layout = held["layout"]
+                if layout is None or not layout.fits(A_f, A_wall):
+                    layout = held["layout"] = Layout(A_f, A_wall, glob, fixed, n)
+                return layout, layout.fill(A_f.data, A_wall.data)
+
+            def unknowns(free_x):
+                """The system's unknowns: the fixed values, and ``free_x`` on the free ones (None: zero)."""
+                out = x.copy()
+                if free_x is not None:
+                    out[held["layout"].free] = free_x
+                return out
+
+            layout, data = matrix(None)  # (a nonlinear wall's tangent at the start)
+            if stack.linear:  # the first correction from zero: the linear system's solution
+                b = np.zeros(n)
+                b[: fluid.ndofs] = b_f
+                np.add.at(b, glob, structure.rhs(history, forces, dt))
+                rhs = b[layout.free] - layout.free_fixed.matrix(data) @ x[layout.fixed]
+                result = newton(None, lambda _, r: solver.solve(layout.free_free.matrix(data, keep=True), r), None,
+                                linear=True, first=rhs)
+            else:
+                magnitude = abs(A_f)
+
+                def residual(free_x):
+                    """The fluid's rows b_f − A_f x and the wall's out-of-balance force, summed on the shared rows."""
+                    full = unknowns(free_x)
+                    xf = full[: fluid.ndofs]
+                    r, size = np.zeros(n), np.zeros(n)
+                    r[: fluid.ndofs] = b_f - A_f @ xf
+                    size[: fluid.ndofs] = np.abs(b_f) + magnitude @ np.abs(xf)
+                    r_wall, size_wall = structure.residual(history, forces, full[glob], dt)
+                    np.add.at(r, glob, r_wall)
+                    np.add.at(size, glob, size_wall)
+                    return r[held["layout"].free], size[held["layout"].free]
+
+                def solve(free_x, r):
+                    layout, data = matrix(free_x)
+                    return solver.solve(layout.free_free.matrix(data, keep=True), r)
+
+                result = newton(residual, solve, np.zeros(layout.free.size), stats=solver.stats,
+                                what="the monolithic system")
+            x = unknowns(result.x)
             # each part takes back its share of the solution
             solution = fluid.advance(system, x[: fluid.ndofs])
-            wstep = structure.finish(history, x[glob], forces, dt)
+            wstep = structure.finish(history, x[glob], forces, dt, result)
             eta_new = R @ wstep.wall.d
             axial, extra = None, {**state.extra, **prediction.extra()}
             if Rz is not None:  # no-slip: the lumen's axial motion moves the domain too

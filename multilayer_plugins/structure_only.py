@@ -37,7 +37,7 @@ class StructureOnly(Coupler):
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         S, wall = self.scheme, setup.wall
-        step = StructureStep(setup.stack, S, setup.dt, setup.stats("wall"), setup.case.solver)
+        step = StructureStep(setup.stack, S, setup.dt, setup.stats("wall"), setup.case.solver, reuse=setup.case.reuse)
         unit_lumen = wall.line_load(0)
         for n, t0, t1 in setup.windows(state.n):
             loads = window_loads(setup, S, t0, t1)

@@ -417,7 +417,8 @@ class _Validator:
         elif self.mark() == mark:
             self.built_layers[path] = layer
         H = 0.0 if thin else float(getattr(layer, "thickness", params.get("thickness", 0.0)) or 0.0)
-        return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells), H
+        linear = bool(getattr(layer, "linear", True))
+        return LayerSpec(path=path, model=found.name, params=params, thin=thin, cells=cells, linear=linear), H
 
     def geometry(self, data: Mapping[str, Any]) -> tuple[dict[str, Any], Shape | None]:
         """The ``[geometry]`` values (its plugin's parameters under ``params``) and the geometry, built."""

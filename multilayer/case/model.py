@@ -96,6 +96,8 @@ class ModelSpec:
 class LayerSpec(ModelSpec):
     thin: bool = True
     cells: int | None = None  #: radial cells of a thick band
+    #: whether the built layer declares linear forms (``Layer.linear``): a coupler that needs a linear wall checks it
+    linear: bool = True
 
 
 @attrs.frozen

@@ -20,6 +20,7 @@ import numpy as np
 from multilayer.case.model import Initial, LayerSpec, Limits
 from multilayer.case.partial import NotBuilt
 from multilayer.geometry.contract import Geometry as Shape
+from multilayer.numerics.newton import NewtonError
 from multilayer.plugin.problems import MISSING, Problem
 from multilayer.wall import probe
 from multilayer.wall.checks import LayerError
@@ -97,6 +98,10 @@ def deflection_problems(pressure: float, external: float, stack: Stack, limits: 
         d, settles = static_deflection(stack, pressure, external), True
     except Unsettled as exc:
         d, settles = exc.linear, False
+    except NewtonError as exc:  # a nonlinear layer's equilibrium that Newton does not reach
+        return [Problem("initial.pressure", pressure, f"the wall's static equilibrium {loads} is not found: {exc}",
+                        "a smaller initial.pressure, or check the nonlinear layer's force and tangent "
+                        "(multilayer check-plugin)")]
     except RuntimeError as exc:  # splu: the stiffness is exactly singular
         return [Problem("initial.pressure", pressure, f"the wall has no static equilibrium {loads}: its stiffness is "
                         f"singular ({exc}: a motion of the wall that no layer resists)",

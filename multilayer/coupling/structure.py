@@ -17,6 +17,14 @@ coupled scheme the thin layer at the fluid interface gets vⁿ from the fluid
 step, while a thick band keeps its Vⁿ, even at the DOFs they share; so a
 Crank–Nicolson step ends with one new velocity per layer,
 V_i^{n+1} = 2V̄ − V_iⁿ.
+
+A wall with a nonlinear layer (:class:`~multilayer.wall.layer.NonlinearForms`)
+solves the same step for its forces, F̄ − Σ_i [M_i(α₀/β₀ V̄ + h_i)/Δt + g_i(V̄) + f̂_i] = 0
+(:meth:`StructureStep.residual`), by Newton's method (:mod:`multilayer.numerics.newton`)
+with the tangent (α₀/β₀) M/Δt + C_T + (β₀Δt/α₀) K_T (:meth:`StructureStep.tangent`),
+each correction solved by a :class:`~multilayer.numerics.linsolve.ReusingSolver`.
+f̂_i is the internal force the scheme's energy identity needs (:func:`step_force`).
+A linear wall takes the same loop's one correction: the back-substitution above.
 """
 
 from __future__ import annotations
@@ -27,10 +35,15 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.numerics.linsolve import SolverStats, factorize
+from multilayer.numerics.linsolve import Reuse, ReusingSolver, SolverStats, factorize
+from multilayer.numerics.newton import NewtonResult, newton
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.scene.state import State, WallState
+from multilayer.wall.layer import LayerMatrices
 from multilayer.wall.stack import Stack
+
+#: |W(d¹) − W(d⁰) − ∇W(d_mid)·Δd| below this share of the energies is round-off: no discrete-gradient correction
+GRADIENT_ROUND_OFF = 1e-13
 
 
 def _label(i: int) -> str:
@@ -47,6 +60,8 @@ class WallStep:
     stored: dict[str, float]
     work: dict[str, float]
     dissipation: dict[str, float]
+    #: how the step's Newton solve went (None when V̄ was solved elsewhere: a monolithic system)
+    newton: NewtonResult | None = None
 
 
 class StructureStep:
@@ -67,17 +82,20 @@ class StructureStep:
     fluid_line : int or None
         The line whose thin layers take their old velocity from ``State.v``
         (0 in a partitioned coupled run), or None when no fluid updates it.
+    reuse : Reuse
+        How a nonlinear wall's Newton corrections reuse factorizations (``[solver] reuse``).
     """
 
     def __init__(self, stack: Stack, scheme: TimeScheme, dt: float, stats: SolverStats,
-                 backend: str = "superlu", fluid_line: int | None = None):
+                 backend: str = "superlu", fluid_line: int | None = None, reuse: Reuse = Reuse()):
         self.stack = stack
         self.scheme = scheme
         self.dt = dt
         self.fluid_line = fluid_line
-        self._stats, self._backend = stats, backend
+        self._stats, self._backend, self._reuse = stats, backend, reuse
         self._solver = None  # factorized at the first step: a monolithic solve uses only matrix() and rhs()
         self._solver_dt = dt  # the Δt of the factorized matrix
+        self._newton_solver: ReusingSolver | None = None  # a nonlinear wall's: made at its first step
 
     def matrix(self, dt: float | None = None):
         """(α₀/β₀) M/Δt + C + (β₀Δt/α₀) K in the wall's numbering (every DOF), for Δt = ``dt`` (default: the run's)."""
@@ -102,23 +120,93 @@ class StructureStep:
         wall numbering).
 
         Returns the new wall and the terms of the step's energy identity
-        (energy at the end of the step, work, dissipation).  A Δt other than
-        the last step's changes the matrix: it is factorized again.
+        (energy at the end of the step, work, dissipation).  A linear wall's
+        step is one back-substitution with the factors of :meth:`matrix`
+        (a Δt other than the last step's changes the matrix: it is factorized
+        again); a nonlinear wall's, Newton's iteration from V̄ = 0.
         """
         st, dt = self.stack, self.dt if dt is None else dt
         states = state.history(self.scheme.levels - 1)
-        mean = np.zeros(st.space.ndofs)
-        mean[st.free] = self._factors(dt).solve(self.rhs(states, forces, dt)[st.free])
-        return self.finish(states, mean, forces, dt)
+        free = st.free
+        if st.linear:
+            result = newton(None, lambda x, r: self._factors(dt).solve(r), None, linear=True,
+                            first=self.rhs(states, forces, dt)[free])
+        else:
+            def residual(x):
+                r, size = self.residual(states, forces, self._full(x), dt)
+                return r[free], size[free]
+
+            def solve(x, r):
+                return self._nonlinear_solver().solve(self.tangent(states, self._full(x), dt)[free][:, free], r)
+
+            result = newton(residual, solve, np.zeros(free.size), stats=self._stats)
+        return self.finish(states, self._full(result.x), forces, dt, result)
+
+    def _full(self, x: np.ndarray) -> np.ndarray:
+        """The wall vector of the free DOFs' values ``x`` (zero on the essential DOFs)."""
+        mean = np.zeros(self.stack.space.ndofs)
+        mean[self.stack.free] = x
+        return mean
+
+    def _nonlinear_solver(self) -> ReusingSolver:
+        if self._newton_solver is None:
+            self._newton_solver = ReusingSolver(self._stats, self._backend, self._reuse)
+        return self._newton_solver
+
+    # -- the nonlinear step: its residual and tangent ----------------------------------
+    def levels(self, states: Sequence[State], mean: np.ndarray, dt: float) -> list[np.ndarray]:
+        """[d^{n+1}, dⁿ, ...]: the displacements of the step whose test-level velocity is V̄ = ``mean``."""
+        old = [x.wall.d for x in states]
+        return [self.scheme.displacement(mean, old, dt), *old]
+
+    def residual(self, states: Sequence[State], forces: Mapping[str, np.ndarray], mean: np.ndarray,
+                 dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The wall's out-of-balance force at V̄ = ``mean``, F̄ − Σ_i [M_i(α₀/β₀ V̄ + h_i)/Δt + g_i(V̄) + f̂_i],
+        and entry by entry the sum of its terms' magnitudes (wall numbering, every DOF).
+
+        Zero at the step's solution; for a linear wall it is :meth:`rhs` − :meth:`matrix` V̄.
+        """
+        st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
+        loads = sum(forces.values(), np.zeros(st.space.ndofs))
+        ds = self.levels(states, mean, dt)
+        r, size = loads.copy(), np.abs(loads)
+        for i, m in enumerate(st.matrices):
+            h = s.history([self.own_velocity(i, x) for x in states])
+            for term in (m.mass @ (s.inertia * mean + h) / dt, m.damping_force(mean), step_force(s, m, ds)):
+                r -= term
+                size += np.abs(term)
+        return r, size
+
+    def tangent(self, states: Sequence[State], mean: np.ndarray, dt: float | None = None) -> sp.csr_matrix:
+        """−∂(:meth:`residual`)/∂V̄ at V̄ = ``mean``: (α₀/β₀) M/Δt + Σ_i C_T,i(V̄) + (β₀Δt/α₀) Σ_i K_T,i(d̄).
+
+        Exact where the scheme's force is the force at d̄ (backward Euler, BDF2); for Crank–Nicolson's
+        discrete gradient it leaves out the derivative of its correction, which is of the order of Δd
+        (:func:`step_force`): the iteration then converges at a rate of that order.
+        """
+        st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
+        dbar = s.average(self.levels(states, mean, dt))
+        gain = s.displacement_gain(dt)
+        J = st.mass * (s.inertia / dt)
+        for m in st.matrices:
+            J = J + m.damping_tangent(mean) + m.tangent(dbar) * gain
+        return sp.csr_matrix(J)
 
     def response(self, loads: sp.spmatrix, dt: float | None = None) -> np.ndarray:
         """The change of V̄ that each column of ``loads`` (wall numbering) makes as a force F̄ of a step of Δt.
 
-        The step is linear in its forces, so a load F̄ + ΔF̄ moves V̄ by
+        The step of a linear wall is linear in its forces, so a load F̄ + ΔF̄ moves V̄ by
         A⁻¹ΔF̄ with A = :meth:`matrix` on the free DOFs: one back-substitution
         per column of the factors :meth:`step` uses (a dense wall × column array).
+
+        Raises
+        ------
+        ValueError
+            For a wall with a nonlinear layer, whose response depends on the load.
         """
         st, dt = self.stack, self.dt if dt is None else dt
+        if not st.linear:
+            raise ValueError("a wall with a nonlinear layer has no response independent of its load")
         out = np.zeros((st.space.ndofs, loads.shape[1]))
         out[st.free] = self._factors(dt).solve(loads.tocsr()[st.free].toarray())
         return out
@@ -132,8 +220,12 @@ class StructureStep:
         return self._solver
 
     def finish(self, states: Sequence[State], mean: np.ndarray, forces: Mapping[str, np.ndarray],
-               dt: float | None = None) -> WallStep:
-        """The new wall from V̄ solved (here or in a monolithic system), and the identity's terms."""
+               dt: float | None = None, newton: NewtonResult | None = None) -> WallStep:
+        """The new wall from V̄ solved (here or in a monolithic system), and the identity's terms.
+
+        A nonlinear layer's elastic energy changes by what its force did, Σα_k d^{n+1−k}·f̂ = Δt V̄·f̂; what the
+        scheme's stored energy does not take of it is numerical dissipation (:func:`elastic_remainder`).
+        """
         st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
         d = s.displacement(mean, [x.wall.d for x in states], dt)
         V = s.new_level(mean, [x.wall.V for x in states])
@@ -148,14 +240,76 @@ class StructureStep:
             stored[f"kinetic.{_label(i)}"] = s.stored(m.kinetic, vs)
             stored[f"elastic.{_label(i)}"] = s.stored(m.elastic, ds)
             dissipation[f"dissipation.viscous.{_label(i)}"] = m.dissipation(mean, dt)
-            numerical += s.numerical(m.kinetic, vs) + s.numerical(m.elastic, ds)
+            elastic = s.numerical(m.elastic, ds) if m.linear else elastic_remainder(s, m, ds)
+            numerical += s.numerical(m.kinetic, vs) + elastic
         dissipation["dissipation.numerical.wall"] = numerical
         work = {f"work.{name}": dt * float(mean @ f) for name, f in forces.items()}
-        return WallStep(WallState(d, V), new_v, mean, stored, work, dissipation)
+        return WallStep(WallState(d, V), new_v, mean, stored, work, dissipation, newton)
 
     def energy(self, state: State) -> dict[str, float]:
         """Stored energy of every layer in ``state``, as the scheme measures it."""
         return wall_energy(self.stack, self.scheme, state, self.fluid_line)
+
+
+def step_force(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray]) -> np.ndarray:
+    """f̂: the internal force a layer's forms apply in a step of ``scheme`` with displacements ``ds`` (newest first).
+
+    A linear layer's K d̄ at d̄ = Σβ_k d^{n+1−k}.  Otherwise it is what the
+    scheme's energy identity needs (issue 38; the one place a scheme's kind
+    matters to the wall):
+
+    * the operator at one level (β = (1, 0, …): backward Euler, BDF2): the
+      force there, f(d^{n+1}); what the stored energy's change leaves of its
+      work is the scheme's numerical dissipation (:func:`elastic_remainder`;
+      W(dⁿ) − W(d^{n+1}) + f(d^{n+1})·Δd ≥ 0 for backward Euler and a convex W);
+    * the midpoint of two levels (Crank–Nicolson): the discrete gradient
+      (Gonzalez 2000) f̄ = ∇W(d_mid) + [W(d¹) − W(d⁰) − ∇W(d_mid)·Δd] Δd/|Δd|²,
+      so that f̄·Δd = W(d¹) − W(d⁰) and the step conserves W as it conserves
+      ½dᵀKd (the correction is zero for a quadratic W, O(|Δd|²) otherwise;
+      below :data:`GRADIENT_ROUND_OFF` of the energies it is round-off, left out).
+      Its Δd is the layer's own: the wall's on the DOFs the layer's matrices
+      touch, so that the correction stays on the layer.
+
+    >>> import scipy.sparse as sp
+    >>> from multilayer.numerics.timescheme import SCHEMES
+    >>> from multilayer.wall.layer import NonlinearForms
+    >>> class Quartic(NonlinearForms):  # W = ¼ Σ d⁴
+    ...     def elastic(self, d): return 0.25 * float(np.sum(d**4))
+    ...     def force(self, d): return d**3
+    >>> forms = Quartic(sp.identity(2, format="csr"), sp.csr_matrix((2, 2)), sp.csr_matrix((2, 2)))
+    >>> d0, d1 = np.array([0.0, 1.0]), np.array([1.0, 2.0])
+    >>> f = step_force(SCHEMES["crank-nicolson"], forms, [d1, d0])
+    >>> float(f @ (d1 - d0)) == forms.elastic(d1) - forms.elastic(d0), step_force(SCHEMES["bdf2"], forms, [d1, d0, d0])
+    (True, array([1., 8.]))
+    """
+    if forms.linear or scheme.beta[0] == 1.0:
+        return forms.force(scheme.average(ds))
+    if tuple(scheme.beta) != (0.5, 0.5):
+        raise ValueError(f"{scheme.name} has no energy-consistent internal force for a nonlinear layer: its "
+                         f"operator is evaluated at Σβ_k d^(n+1−k) with β = {scheme.beta}")
+    d1, d0 = ds[0], ds[1]
+    f = forms.force(0.5 * (d0 + d1))
+    delta = d1 - d0
+    w1, w0, work = forms.elastic(d1), forms.elastic(d0), float(f @ delta)
+    own = np.where(sp.csr_matrix(forms.mass).getnnz(axis=1) + sp.csr_matrix(forms.stiffness).getnnz(axis=1) > 0,
+                   delta, 0.0)
+    jump, norm2 = w1 - w0 - work, float(own @ own)
+    if norm2 == 0.0 or abs(jump) <= GRADIENT_ROUND_OFF * (abs(w1) + abs(w0) + abs(work)):
+        return f
+    return f + (jump / norm2) * own
+
+
+def elastic_remainder(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray]) -> float:
+    """The numerical dissipation of a layer's elastic energy in a step: Σα_k d^{n+1−k}·f̂ − stored + before.
+
+    The work of the force the step applied (:func:`step_force`) less the
+    change of the energy the scheme stores; for a quadratic W it is the
+    scheme's ``numerical`` (backward Euler: ½ΔdᵀKΔd), for Crank–Nicolson's
+    discrete gradient zero to round-off.  BDF2's G-norm is an identity only
+    for a quadratic W: with another the term may take either sign.
+    """
+    work = float(scheme.difference(ds) @ step_force(scheme, forms, ds))
+    return work - scheme.stored(forms.elastic, ds) + scheme.before(forms.elastic, ds)
 
 
 def own_velocity(stack: Stack, index: int, state: State, fluid_line: int | None) -> np.ndarray:
@@ -180,4 +334,4 @@ def wall_energy(stack: Stack, scheme: TimeScheme, state: State, fluid_line: int 
     return out
 
 
-__all__ = ["StructureStep", "WallStep", "own_velocity", "wall_energy"]
+__all__ = ["StructureStep", "WallStep", "elastic_remainder", "own_velocity", "step_force", "wall_energy"]

@@ -65,6 +65,13 @@ class SolverStats:
     #: the price of a factorization in GMRES iterations that :class:`ReusingSolver` refactorizes at (the
     #: case's ``factorization_cost``, or :func:`factorization_cost` of the system's size); None before any
     factorization_cost: float | None = None
+    #: Newton solves of a nonlinear system (:func:`multilayer.numerics.newton.newton`; none for a linear one),
+    #: their corrections in all, the most one took, the largest relative residual one ended at and the last's
+    newton_solves: int = 0
+    newton_iterations: int = 0
+    newton_max_iterations: int = 0
+    newton_residual: float = 0.0
+    newton_last_residual: float = 0.0
     #: the :class:`ReusingSolver` counting here (the latest made with these stats), whose held state
     #: (:meth:`ReusingSolver.held`) a checkpoint keeps; and the held state a resumed run hands it to take back
     #: before its first solve, so the run goes on as if it had never stopped

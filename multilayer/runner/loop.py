@@ -315,6 +315,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "timings": _timings(setup),
         "factorizations": _factorizations(setup),
         "krylov": _krylov(setup),
+        **_newton(setup),
         "energy": {"max_relative_residual": tally.max_rel},
         **({"volume": tally.volume.summary()} if tally.volume is not None else {}),
         **_iterations(tally.iterations),
@@ -434,6 +435,19 @@ def _krylov(setup: Setup | None) -> dict[str, dict[str, int | float]]:
                 row["factorization_cost"] = round(st.factorization_cost, 3)
             out[name] = row
     return out
+
+
+def _newton(setup: Setup | None) -> dict[str, dict[str, dict[str, int | float]]]:
+    """The Newton solves of a nonlinear wall per system that had any (``newton``; a linear wall has none): how
+    many, their corrections in all, the most one took, the largest relative residual one ended at and the
+    last one's (:mod:`multilayer.numerics.newton`)."""
+    if setup is None:
+        return {}
+    out = {name: {"solves": st.newton_solves, "iterations": st.newton_iterations,
+                  "max_iterations": st.newton_max_iterations, "max_residual": st.newton_residual,
+                  "last_residual": st.newton_last_residual}
+           for name, st in setup.solvers.items() if st.newton_solves}
+    return {"newton": out} if out else {}
 
 
 def _timings(setup: Setup | None) -> dict[str, float]:

@@ -124,7 +124,8 @@ class Setup:
             if init.pressure is None:
                 d0 = self.wall.interpolate(init.displacement_z, init.displacement_r)
             else:
-                d0 = static_deflection(self.stack, init.pressure, self.case.loads.external.value(0.0))
+                d0 = static_deflection(self.stack, init.pressure, self.case.loads.external.value(0.0),
+                                       None if self.stack.linear else self.stats("static"))
             v0 = self.wall.interpolate(init.velocity_z, init.velocity_r)
             wall = WallState(self.stack.zero_fixed(d0), self.stack.zero_fixed(v0))
         if self.fluid is not None:

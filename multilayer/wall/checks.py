@@ -1,4 +1,4 @@
-"""What a layer hands the core, checked: the object its factory builds, its matrices, its essential DOFs.
+"""What a layer hands the core, checked: the object its factory builds, its forms, its essential DOFs.
 
 A layer is foreign code, so what it returns is checked where the core
 receives it (:meth:`multilayer.wall.stack.Stack.assemble`, the validator's small
@@ -159,3 +159,66 @@ def essential_problems(dofs: Any, n: int) -> list[str]:
     if outside.size:
         return [f"essential_dofs has indices outside 0..{n - 1}: {outside[:5].tolist()}"]
     return []
+
+
+def linearity_problem(layer: Any, matrices: Any) -> str | None:
+    """Why ``layer``'s declaration ``linear`` does not match the forms it returned (None when it does).
+
+    >>> from multilayer.wall.layer import NonlinearForms
+    >>> I = sp.identity(2, format="csr")
+    >>> class Curved(ThinLayer):
+    ...     def forms(self, space):
+    ...         return NonlinearForms(I, I, I)
+    >>> linearity_problem(Curved(), NonlinearForms(I, I, I))
+    'forms returned nonlinear forms (NonlinearForms), but the layer declares linear = True; set linear = False on its class'
+    """
+    if not isinstance(matrices, LayerMatrices) or matrices.linear == bool(getattr(layer, "linear", True)):
+        return None
+    if matrices.linear:
+        return (f"forms returned linear forms ({type(matrices).__name__}), but the layer declares linear = False; "
+                "return NonlinearForms, or leave linear at True")
+    return (f"forms returned nonlinear forms ({type(matrices).__name__}), but the layer declares linear = True; "
+            "set linear = False on its class")
+
+
+def state_problems(forms: LayerMatrices, n: int, d: np.ndarray | None = None,
+                   v: np.ndarray | None = None) -> list[str]:
+    """What is wrong with what nonlinear ``forms`` return at the state (d, v) (default: at rest) on ``n`` DOFs.
+
+    ``elastic`` a finite number, ``force`` and ``damping_force`` finite real arrays of shape (n,),
+    ``tangent`` and ``damping_tangent`` scipy sparse (n, n) with finite entries.
+
+    >>> from multilayer.wall.layer import NonlinearForms
+    >>> I = sp.identity(2, format="csr")
+    >>> class Bad(NonlinearForms):
+    ...     def force(self, d):
+    ...         return np.full(3, np.nan)
+    >>> state_problems(Bad(I, I, I), 2)
+    ['force returned an array of shape (3,); expected (2,)']
+    """
+    d = np.zeros(n) if d is None else d
+    v = np.zeros(n) if v is None else v
+    problems = []
+    for name, arg in (("elastic", d), ("force", d), ("tangent", d), ("damping_force", v), ("damping_tangent", v)):
+        try:
+            out = getattr(forms, name)(arg)
+        except Exception as exc:  # the layer's own code
+            problems.append(f"{name} raised {raised(exc)}")
+            continue
+        if name == "elastic":
+            if not isinstance(out, int | float | np.floating) or not np.isfinite(out):
+                problems.append(f"elastic must return a finite number, got {out!r}")
+        elif name.endswith("tangent"):
+            if not sp.issparse(out) or out.shape != (n, n):
+                shape = getattr(out, "shape", None)
+                problems.append(f"{name} must return a scipy sparse matrix of shape ({n}, {n}), got "
+                                f"{type(out).__name__} of shape {shape}")
+            elif not np.all(np.isfinite(sp.csr_matrix(out).data)):
+                problems.append(f"{name} has non-finite entries (nan or inf)")
+        else:
+            out = np.asarray(out)
+            if out.shape != (n,):
+                problems.append(f"{name} returned an array of shape {out.shape}; expected ({n},)")
+            elif not np.issubdtype(out.dtype, np.floating) or not np.all(np.isfinite(out)):
+                problems.append(f"{name} must return finite real numbers")
+    return problems

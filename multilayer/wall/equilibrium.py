@@ -3,12 +3,17 @@
 A case with ``[initial] pressure = P⁰`` starts with the fluid at rest at the
 uniform pressure P⁰ and the wall already deflected under it (an artery
 inflated at its diastolic pressure), rather than at rest undeformed with the
-loads switched on at full size at t = 0.  The wall solves K d = f with its
-essential DOFs held, where f is P⁰ on the lumen and the external pressure
+loads switched on at full size at t = 0.  The wall solves f_int(d) = f with its
+essential DOFs held (K d = f for a linear wall), where f is P⁰ on the lumen and the external pressure
 at t = 0 on the outer surface.  The fluid's pressure acts on the lumen's
 deformed place r = R + η: under a measure c·rᵏ its work vector is
 P⁰ ∫ ψ ((R + η)/R)ᵏ dA, so a tube's (k = 1) depends on η and the
 deflection is iterated to round-off; a planar one (k = 0) is one solve.
+Each solve under a given f is Newton's loop (:mod:`multilayer.numerics.newton`):
+one back-substitution with the factors of K for a linear wall; for a wall
+with a nonlinear layer, corrections with the tangent Σ_i K_T,i(d) from the
+last deflection, until the residual is below the loop's tolerance (the
+iteration of the moving lumen then stops at that tolerance, not at round-off).
 Validation solves it too, to weigh the deflection against the channel
 (:func:`multilayer.case.trial_walls.deflection_problems`).
 """
@@ -21,6 +26,8 @@ import numpy as np
 import skfem
 from scipy.sparse.linalg import splu
 
+from multilayer.numerics.linsolve import SolverStats, factorize
+from multilayer.numerics.newton import TOLERANCE, newton
 from multilayer.wall.stack import LUMEN, Stack
 
 #: the relative change of the deflection at which the iteration of a measure moving with η stops
@@ -42,37 +49,67 @@ class Unsettled(ValueError):
         self.linear = linear
 
 
-def static_deflection(stack: Stack, pressure: float, external: float) -> np.ndarray:
-    """The wall displacement d (wall numbering, essential DOFs zero) with K d = f under the lumen pressure
-    ``pressure`` and the outer surface's ``external`` (dyn/cm²).
+def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None) -> np.ndarray:
+    """The wall displacement d (wall numbering, essential DOFs zero) with f_int(d) = f under the lumen pressure
+    ``pressure`` and the outer surface's ``external`` (dyn/cm²).  ``stats``: where a nonlinear wall's Newton
+    solves and factorizations are counted.
 
     Raises
     ------
     Unsettled
         When the iteration of a measure moving with the lumen does not settle (a ValueError).
+    NewtonError
+        When a nonlinear wall's Newton iteration does not converge.
     """
     space = stack.space
     k = space.lines[LUMEN].geometry.radial_power
     free = stack.free
-    solve = splu(stack.stiffness.tocsc()[free][:, free]).solve
+    linear = stack.linear
+    if linear:
+        factors = splu(stack.stiffness.tocsc()[free][:, free]).solve
     outer = -external * space.line_load(space.outer_line)
-    d, previous = np.zeros(space.ndofs), np.inf
-    for iteration in range(MAX_ITERATIONS):
+    settled = ROUND_OFF if linear else TOLERANCE
+    stats = SolverStats() if stats is None else stats
+    d, previous, first = np.zeros(space.ndofs), np.inf, None
+    for _ in range(MAX_ITERATIONS):
         eta = space.restrictions[LUMEN] @ d
         f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
         new = np.zeros_like(d)
-        new[free] = solve(f[free])
+        if linear:
+            new[free] = newton(None, lambda x, r: factors(r), None, linear=True, first=f[free]).x
+        else:
+            new[free] = newton(lambda x: _out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
+                               d[free], stats=stats, what="the wall's static equilibrium").x
         change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
         d = new
-        if iteration == 0:
-            linear = new
-        if k == 0 or change <= ROUND_OFF * size or previous <= change <= FLOOR * size:
+        first = new if first is None else first
+        if k == 0 or change <= settled * size or previous <= change <= FLOOR * size:
             return d
         previous = change
     raise Unsettled(f"the wall's static equilibrium under initial.pressure = {pressure:g} did not settle in "
                     f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm): the pressure on the moved "
                     f"lumen softens the wall (by P⁰/R per unit η) more than its stiffness holds; a smaller "
-                    f"initial.pressure", linear)
+                    f"initial.pressure", first)
+
+
+def _full(stack: Stack, x: np.ndarray) -> np.ndarray:
+    d = np.zeros(stack.space.ndofs)
+    d[stack.free] = x
+    return d
+
+
+def _out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms."""
+    internal = [m.force(_full(stack, x)) for m in stack.matrices]
+    r = f - sum(internal)
+    size = np.abs(f) + sum(np.abs(term) for term in internal)
+    return r[stack.free], size[stack.free]
+
+
+def _tangent_solve(stack: Stack, x: np.ndarray, r: np.ndarray, stats: SolverStats) -> np.ndarray:
+    """Σ_i K_T,i(d)⁻¹ r on the free DOFs (a one-off solve: each tangent factorized, full Newton)."""
+    free = stack.free
+    return factorize(stack.tangent(_full(stack, x)).tocsr()[free][:, free], stats).solve(r)
 
 
 def lumen_force(space: Any, pressure: float, eta: np.ndarray) -> np.ndarray:

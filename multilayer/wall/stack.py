@@ -29,8 +29,10 @@ from multilayer.geometry.spaces import (
 from multilayer.wall.checks import (
     LayerError,
     essential_problems,
+    linearity_problem,
     matrix_problems,
     raised,
+    state_problems,
 )
 from multilayer.wall.layer import Layer, LayerMatrices
 
@@ -168,15 +170,31 @@ def _unit_load(v, w):
 
 @attrs.define(eq=False)
 class Stack:
-    """The assembled stack: per-layer matrices in wall numbering, their sums, the free DOFs."""
+    """The assembled stack: per-layer forms in wall numbering, their matrices' sums, the free DOFs.
+
+    A nonlinear layer's damping and stiffness are its tangents at rest, so the sums are the wall's at rest.
+    """
 
     space: WallSpace
-    matrices: list[LayerMatrices]  #: one per layer, in stack order
+    matrices: list[LayerMatrices]  #: one per layer, in stack order (their forces: :class:`LayerMatrices`)
     mass: sp.csr_matrix
     damping: sp.csr_matrix
     stiffness: sp.csr_matrix
     fixed: np.ndarray  #: essential DOFs, held at zero
     free: np.ndarray
+
+    @property
+    def linear(self) -> bool:
+        """True when every layer's forces are linear: the wall's step matrix is constant for a Δt."""
+        return all(m.linear for m in self.matrices)
+
+    def force(self, d: np.ndarray) -> np.ndarray:
+        """Σ_i f_i(d): the internal force of every layer at the displacement ``d`` (wall numbering)."""
+        return sum((m.force(d) for m in self.matrices), np.zeros(self.space.ndofs))
+
+    def tangent(self, d: np.ndarray) -> sp.csr_matrix:
+        """Σ_i K_T,i(d): the wall's stiffness tangent at ``d``."""
+        return sum((sp.csr_matrix(m.tangent(d)) for m in self.matrices), sp.csr_matrix(self.stiffness.shape)).tocsr()
 
     @classmethod
     def assemble(cls, space: WallSpace, radial_lines: Sequence[int] = (), pinned_lines: Sequence[int] = ()) -> Stack:
@@ -232,10 +250,12 @@ def fluid_pinned_lines(layers: Sequence[Layer], fluid: bool) -> tuple[int, ...]:
 
 
 def layer_output(p: Placement, space: LineSpace | BandSpace) -> tuple[LayerMatrices, np.ndarray]:
-    """The matrices and essential DOFs of the layer placed at ``p``, on its ``space``, checked.
+    """The forms and essential DOFs of the layer placed at ``p``, on its ``space``, checked.
 
     The checks of :mod:`multilayer.wall.checks`: sparse matrices of the
-    space's shape, finite, symmetric; essential DOFs integers in range.
+    space's shape, finite, symmetric; forms linear as the layer declares, and
+    nonlinear ones returning forces and tangents of the space's shape at rest;
+    essential DOFs integers in range.
 
     Raises
     ------
@@ -249,6 +269,10 @@ def layer_output(p: Placement, space: LineSpace | BandSpace) -> tuple[LayerMatri
     except Exception as exc:  # the layer's own code: name it and say where it failed
         raise LayerError(p.where, [f"forms raised {raised(exc)}"]) from exc
     problems = matrix_problems(own, n)
+    linearity = linearity_problem(p.layer, own)
+    problems += [linearity] if linearity else []
+    if not problems and not own.linear:
+        problems += state_problems(own, n)
     try:
         ess = p.layer.essential_dofs(space)
     except Exception as exc:

@@ -1,0 +1,123 @@
+"""Newton's method: the one loop every wall solve goes through (a wall step, a monolithic step, the static start).
+
+A solve is R(x) = 0, R the out-of-balance force (loads minus the forces of
+the state x), by corrections x ← x + J(x)⁻¹ R(x) with J = −∂R/∂x the
+tangent.  The caller gives the residual and the solve with its tangent;
+:func:`newton` runs the loop and says how it converged.
+
+A linear problem (R affine, J its constant matrix, solved exactly) is
+solved by its first correction: from a start at zero it IS the linear
+solve J⁻¹R(0), so the loop does that solve and nothing else — no residual
+is evaluated, no counter is touched.
+
+A nonlinear one iterates until the residual, relative to the size of the
+terms it balances (a vector the caller adds up from their magnitudes, so
+that round-off in them sets the floor), is at most :data:`TOLERANCE`.  Its
+corrections are solved by the caller's solver: in this project a
+:class:`~multilayer.numerics.linsolve.ReusingSolver`, which solves each
+tangent to its tolerance by GMRES on a held factorization and refactorizes
+when that stalls — so the loop is Newton's, quadratic near the solution,
+while the factorizations are reused (theory §4, "Nonlinear layers").
+
+x + x³ = 2 from x = ½, the relative residual squared at each correction:
+
+>>> import numpy as np
+>>> cubic = lambda x: (np.array([2.0]) - x - x**3, np.array([2.0]) + np.abs(x) + np.abs(x**3))
+>>> result = newton(cubic, lambda x, r: r / (1.0 + 3.0 * x**2), np.array([0.5]))
+>>> result.x, result.iterations, [f"{h:.0e}" for h in result.residuals]
+(array([1.]), 5, ['5e-01', '3e-01', '5e-02', '2e-03', '2e-06', '4e-12'])
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import attrs
+import numpy as np
+
+#: the relative residual ‖R‖/‖size of its terms‖ a nonlinear solve ends at: a step's energy identity then closes
+#: to about that (the runner's ledger asks 1e-9)
+TOLERANCE = 1e-11
+#: corrections allowed before the solve is given up
+MAX_ITERATIONS = 25
+
+Residual = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+Solve = Callable[[np.ndarray | None, np.ndarray], np.ndarray]
+
+
+class NewtonError(RuntimeError):
+    """A Newton solve that did not converge; the message has its residuals."""
+
+
+@attrs.frozen(eq=False)
+class NewtonResult:
+    """The solution, the corrections it took, and the relative residual at the start and after each one
+    (empty for a linear problem: its one correction is exact, no residual is evaluated)."""
+
+    x: np.ndarray
+    iterations: int
+    residuals: tuple[float, ...] = ()
+
+
+def relative(r: np.ndarray, size: np.ndarray) -> float:
+    """‖r‖ / ‖size‖ (0 when both are 0)."""
+    scale = float(np.linalg.norm(size))
+    norm = float(np.linalg.norm(r))
+    return norm / scale if scale > 0.0 else norm
+
+
+def newton(residual: Residual | None, solve: Solve, start: np.ndarray | None, linear: bool = False,
+           first: np.ndarray | None = None, stats=None, tolerance: float = TOLERANCE,
+           max_iterations: int = MAX_ITERATIONS, what: str = "the wall") -> NewtonResult:
+    """x with R(x) = 0 by Newton's corrections x ← x + J(x)⁻¹R(x).
+
+    Parameters
+    ----------
+    residual : callable
+        x ↦ (R(x), size): the out-of-balance force and, entry by entry, the sum of the magnitudes of the
+        terms it is made of.
+    solve : callable
+        (x, r) ↦ J(x)⁻¹ r, with x None for the start at zero.
+    start : array or None
+        x₀; for a linear problem None stands for zero, and the first correction is then the solution itself.
+    linear : bool
+        R is affine and ``solve`` exact: the first correction solves it.  ``first`` is then R(x₀), as the
+        caller computes the right-hand side of its linear system.
+    stats : SolverStats, optional
+        Where a nonlinear solve's corrections and final residual are counted (``newton_*``).
+    what : str
+        What is solved, for the message of a solve that does not converge.
+
+    Raises
+    ------
+    NewtonError
+        When the residual is not finite, or still above ``tolerance`` after ``max_iterations`` corrections.
+    """
+    if linear:
+        r = first if first is not None else residual(start)[0]
+        delta = solve(start, r)
+        return NewtonResult(delta if start is None else start + delta, 1)
+    x = start
+    r, size = residual(x)
+    history = [relative(r, size)]
+    iterations = 0
+    while history[-1] > tolerance:
+        if iterations == max_iterations or not np.isfinite(history[-1]):
+            seen = ", ".join(f"{h:.2e}" for h in history)
+            raise NewtonError(f"{what}: Newton's iteration did not converge in {iterations} corrections (relative "
+                              f"residuals {seen}; tolerance {tolerance:g}): a smaller Δt, or a layer whose tangent "
+                              "is not the derivative of its force (multilayer check-plugin checks it)")
+        x = x + solve(x, r)
+        iterations += 1
+        r, size = residual(x)
+        history.append(relative(r, size))
+    if stats is not None:
+        stats.newton_solves += 1
+        stats.newton_iterations += iterations
+        stats.newton_max_iterations = max(stats.newton_max_iterations, iterations)
+        stats.newton_residual = max(stats.newton_residual, history[-1])
+        stats.newton_last_residual = history[-1]
+    return NewtonResult(x, iterations, tuple(history))
+
+
+__all__ = ["MAX_ITERATIONS", "TOLERANCE", "NewtonError", "NewtonResult", "newton", "relative"]
