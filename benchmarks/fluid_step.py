@@ -35,7 +35,7 @@ from skfem import BilinearForm, asm
 from multilayer.fluid.contract import Domain, FluidSetup, Interface
 from multilayer.functions.loads import ConstantPressure
 from multilayer.numerics.linsolve import BACKENDS
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.planar import Planar
 from multilayer_plugins.pressure import PressureEnd
@@ -46,7 +46,7 @@ ENDS = {"inlet": PressureEnd(ConstantPressure(1.0e3)), "outlet": PressureEnd(Con
 L, R, MU, RHO, DT = 6.0, 0.5, 0.035, 1.0, 1e-4
 THIN_MASS = 1.1 * 0.1  # ρ₁h (g/cm²) of the dummy thin layer
 PHASES = ("assembly", "factorization", "solve", "ledger")
-BE = SCHEMES["backward-euler"]
+BE = named("backward-euler")
 
 
 def counters(fluid) -> dict[str, float]:

@@ -50,13 +50,12 @@ from multilayer.coupling.kit import (
     window_loads,
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
-from multilayer.numerics.timescheme import scheme_param
+from multilayer.numerics.timescheme import TimeScheme, scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
 from multilayer.scene.state import State
 from multilayer.wall.stack import LUMEN
 
-SCHEMES = ("backward-euler", "crank-nicolson")
 ACCELERATIONS = {"aitken": Aitken, "iqn-ils": IQNILS}
 
 
@@ -64,7 +63,6 @@ class DirichletNeumann(ThickLumen, Coupler):
     """Fluid with Dirichlet data on Γ, then the wall under the fluid's force; once, or iterated."""
 
     loads = ("inlet", "outlet", "external")
-    schemes = SCHEMES
     implicit = False
 
     def check_case(self, case) -> list[str]:
@@ -145,7 +143,7 @@ class DirichletNeumann(ThickLumen, Coupler):
                            "dissipation.interface": -(work_f["work.wall"] + w.work["work.fluid"])}
             yield state, StepReport({**w.stored, **stored_f}, work, dissipation,
                                     {"iterations": float(iterations), "interface.residual": residual,
-                                     **fluid_columns(terms)})
+                                     **fluid_columns(terms)}, alpha=S.alpha)
 
 
 class DirichletNeumannExplicit(DirichletNeumann):
@@ -166,8 +164,9 @@ class DirichletNeumannImplicit(DirichletNeumann):
     name = "dirichlet-neumann-implicit"
     implicit = True
 
-    def __init__(self, scheme: str = "backward-euler", acceleration: str = "iqn-ils", tolerance: float = 1e-8,
-                 max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8, lumen: str = "no-slip"):
+    def __init__(self, scheme: TimeScheme | str = "backward-euler", acceleration: str = "iqn-ils",
+                 tolerance: float = 1e-8, max_iterations: int = 500, relaxation: float = 0.5, reuse: int = 8,
+                 lumen: str = "no-slip"):
         super().__init__(scheme, lumen)
         if acceleration not in ACCELERATIONS:
             raise ValueError(f"acceleration {acceleration!r} is not one of {', '.join(ACCELERATIONS)}")
@@ -184,11 +183,11 @@ class DirichletNeumannImplicit(DirichletNeumann):
 def multilayer_couplers():
     return [
         CouplerPlugin(name="dirichlet-neumann-explicit", factory=DirichletNeumannExplicit,
-                      params=(scheme_param(SCHEMES), lumen_param()),
+                      params=(scheme_param(), lumen_param()),
                       doc="Classic explicit partitioned coupling: fluid with the wall's velocity, then the wall "
                           "under the fluid's force; unstable for light walls."),
         CouplerPlugin(name="dirichlet-neumann-implicit", factory=DirichletNeumannImplicit,
-                      params=(scheme_param(SCHEMES),
+                      params=(scheme_param(),
                               Param("acceleration", type=str, default="iqn-ils", choices=tuple(ACCELERATIONS),
                                     doc="update of the interface velocity between sub-iterations"),
                               Param("tolerance", default=1e-8, gt=0.0,

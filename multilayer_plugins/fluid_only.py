@@ -15,7 +15,7 @@ import numpy as np
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import fluid_columns, fluid_groups
 from multilayer.fluid.contract import Domain
-from multilayer.numerics.timescheme import SCHEMES, scheme_param
+from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin
 from multilayer.scene.state import State
@@ -24,7 +24,6 @@ from multilayer.scene.state import State
 class FluidOnly(Coupler):
     name = "fluid-only"
     loads = ("inlet", "outlet")
-    schemes = tuple(SCHEMES)
 
     def check_case(self, case) -> list[str]:
         problems = super().check_case(case)
@@ -74,5 +73,5 @@ class FluidOnly(Coupler):
 
 @hookimpl
 def multilayer_couplers():
-    return [CouplerPlugin(name="fluid-only", factory=FluidOnly, params=(scheme_param(tuple(SCHEMES)),),
+    return [CouplerPlugin(name="fluid-only", factory=FluidOnly, params=(scheme_param(),),
                           doc="The fluid alone: rigid wall, or a wall moved by loads.wall_motion.")]

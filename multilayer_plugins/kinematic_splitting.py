@@ -35,7 +35,8 @@ A2's, the fluid's force cancelling between them as in a monolithic step;
 the fluid keeps its own sequence of domains (A1's, ``FLUID_ETA``), so that
 its kinetic energy is measured on the domains it was solved on.
 
-With Crank–Nicolson it takes adaptive steps (``[time] tolerance``,
+It steps with one-step schemes only (:meth:`KinematicSplitting.scheme_problems`).  With one that
+estimates its error (Crank–Nicolson) it takes adaptive steps (``[time] tolerance``,
 :mod:`multilayer.coupling.clock`), under the paper's Robin term with its own error estimate
 (:meth:`KinematicSplitting.estimate`);
 the wall is factorized again when Δt changes, τ̃ of ``extrapolation = 2``
@@ -71,14 +72,13 @@ from multilayer.coupling.kit import (
 from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.fluid.contract import Domain, Interface
 from multilayer.numerics.stepsize import local_error
-from multilayer.numerics.timescheme import scheme_param
+from multilayer.numerics.timescheme import TimeScheme, scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin, Param
 from multilayer.scene.state import State
 from multilayer.wall.equilibrium import lumen_force
 from multilayer.wall.stack import LUMEN
 
-SCHEMES = ("backward-euler", "crank-nicolson")
 #: the Robin operator of the fluid step: the wall step's impedance on Γ, or the thin layer's inertia (the paper's)
 ROBINS = ("impedance", "inertia")
 #: why the splitting cannot take a fluid directly on a thick band
@@ -99,10 +99,9 @@ INERTIA_LEAK = ("its fluid step sees the wall as the thin layer's mass alone, so
 class KinematicSplitting(Coupler):
     name = "kinematic-splitting"
     loads = ("inlet", "outlet", "external")
-    schemes = SCHEMES
-    adaptive = ("crank-nicolson",)
+    adaptive = True
 
-    def __init__(self, scheme: str = "backward-euler", beta: float | None = None, extrapolation: int = 1,
+    def __init__(self, scheme: TimeScheme | str = "backward-euler", beta: float | None = None, extrapolation: int = 1,
                  robin: str = "impedance"):
         super().__init__(scheme)
         if robin not in ROBINS:
@@ -116,6 +115,16 @@ class KinematicSplitting(Coupler):
         self.beta = float(beta)
         self.extrapolation = int(extrapolation)
         self.robin = robin
+
+    def scheme_problems(self, scheme: TimeScheme) -> list[str]:
+        """Also a one-step scheme (two time levels): the structure step hands the thin layer's velocity to the
+        fluid step as one level (A1's v*), and the step's identity is A1's and A2's over one level each."""
+        problems = super().scheme_problems(scheme)
+        if scheme.levels != 2:
+            problems.append(f"{scheme.name} has {scheme.levels} time levels, and {self.name} takes one-step schemes "
+                            f"(two levels): its structure step hands the thin layer's velocity to the fluid step "
+                            f"as one level")
+        return problems
 
     def fluid_interface_block(self, case) -> bool:
         """The wall's impedance couples every two DOFs of Γ (the whole wall behind it condensed on the line)."""
@@ -253,7 +262,7 @@ class KinematicSplitting(Coupler):
         Z, their difference integrated (``splitting.Z``), is the splitting's defect in η;
         η − Z is the lumen as the fluid's trace integrates it.
 
-        * ``estimate.wall.d``: the Crank–Nicolson estimate of η − Z on the lumen line (rejects the step);
+        * ``estimate.wall.d``: the scheme's estimate of η − Z on the lumen line (rejects the step);
         * ``estimate.next.wall.d``: Δt times the rate averaged over this step and the last,
           the splitting's local error in η without the (−1)ⁿ part of the rate that the last
           steps leave and that no Δt of this step reduces (sets the next step only).
@@ -265,7 +274,8 @@ class KinematicSplitting(Coupler):
             return out
         zs = [s.extra.get("splitting.Z", np.zeros_like(rate)) for s in old]
         k = [w.dt, old[0].t - old[1].t, old[1].t - old[2].t]
-        out["estimate.wall.d"] = P @ local_error(R @ d_new - z_new, [R @ s.wall.d - z for s, z in zip(old, zs)], k)
+        out["estimate.wall.d"] = P @ local_error(R @ d_new - z_new, [R @ s.wall.d - z for s, z in zip(old, zs)], k,
+                                                 w.scheme)
         out["estimate.next.wall.d"] = P @ (w.dt * 0.5 * (rate + state.extra.get("splitting.rate", rate)))
         return out
 
@@ -274,7 +284,7 @@ class KinematicSplitting(Coupler):
 
         The thin layer's kinetic energy after A1 (velocity ``a.v``) is the one A2
         starts from; what testing its A2 inertia with v̄ leaves beyond the
-        scheme's identity is ``dissipation.splitting`` (0 for backward Euler),
+        scheme's identity is ``dissipation.splitting`` (none when x̄ = x^{n+1}: β₀ = 1, backward Euler),
         the β force's net work ``dissipation.beta`` (theory §6).
         """
         S = self.scheme
@@ -293,7 +303,7 @@ class KinematicSplitting(Coupler):
         dissipation["dissipation.numerical.A1"] = a.dissipation["dissipation.numerical.wall"]
         dissipation["dissipation.numerical.A2"] = f["dissipation.numerical.fluid"] + numerical_thin
         dissipation.update(dissipation_f)
-        if S.name != "backward-euler":
+        if S.beta[0] != 1.0:  # x̄ = x^{n+1} (backward Euler): v̄ is A2's new level whatever A1's, no such term
             dissipation["dissipation.splitting"] = splitting
         if self.beta:  # the β force's net work: a term of the scheme, not work of a load
             dissipation["dissipation.beta"] = dt * float(tau @ v_bar) - a.work["work.splitting"]
@@ -328,7 +338,7 @@ def interface_impedance(step: StructureStep, P, R, dt: float) -> tuple[sp.csr_ma
 def multilayer_couplers():
     return [CouplerPlugin(
         name="kinematic-splitting", factory=KinematicSplitting,
-        params=(scheme_param(SCHEMES),
+        params=(scheme_param(),
                 Param("beta", "β", default=None, ge=0.0, le=1.0,
                       doc="share of the fluid's last force on the wall given to the structure step A1 "
                           "(default 1 under robin = 'impedance', where A1 predicts the fluid's domain; "

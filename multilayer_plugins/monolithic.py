@@ -23,7 +23,7 @@ On a thick first layer under ``lumen = "no-slip"`` the band's d_z DOFs on
 the lumen are the fluid's wall u_z unknowns as well (the fluid's wall mode
 ``no-slip``), and the domain follows the lumen's axial motion.
 
-With Crank–Nicolson and BDF2 it takes adaptive steps (``[time] tolerance``,
+With a scheme that estimates its error (Crank–Nicolson, BDF2) it takes adaptive steps (``[time] tolerance``,
 :mod:`multilayer.coupling.clock`): a new Δt changes the wall's share of the
 matrix (its pattern stays), the extrapolations see the step ratio, and so do
 variable-step BDF2's coefficients (a new ratio at the same Δt changes α₀).
@@ -53,7 +53,7 @@ from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.numerics.assembly.pattern import Pattern
 from multilayer.numerics.linsolve import ReusingSolver
 from multilayer.numerics.newton import newton
-from multilayer.numerics.timescheme import SCHEMES, scheme_param
+from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin
 from multilayer.scene.state import State
@@ -63,8 +63,7 @@ from multilayer.wall.stack import LUMEN
 class Monolithic(ThickLumen, Coupler):
     name = "monolithic"
     loads = ("inlet", "outlet", "external")
-    schemes = tuple(SCHEMES)
-    adaptive = ("crank-nicolson", "bdf2")
+    adaptive = True
 
     def check_case(self, case) -> list[str]:
         return super().check_case(case) + coupled_case_problems(self.name, case)
@@ -211,6 +210,6 @@ class Layout:
 
 @hookimpl
 def multilayer_couplers():
-    return [CouplerPlugin(name="monolithic", factory=Monolithic, params=(scheme_param(tuple(SCHEMES)), lumen_param()),
+    return [CouplerPlugin(name="monolithic", factory=Monolithic, params=(scheme_param(), lumen_param()),
                           doc="Fluid and wall in one linear system per step (geometry explicit); the accuracy "
                               "reference.")]

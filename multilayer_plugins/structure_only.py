@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import external_force, window_loads
 from multilayer.coupling.structure import StructureStep, wall_energy
-from multilayer.numerics.timescheme import SCHEMES, scheme_param
+from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin
 from multilayer.scene.state import State
@@ -21,7 +21,6 @@ from multilayer.scene.state import State
 class StructureOnly(Coupler):
     name = "structure-only"
     loads = ("external", "interface")
-    schemes = tuple(SCHEMES)
 
     def check_case(self, case) -> list[str]:
         problems = super().check_case(case)
@@ -50,5 +49,5 @@ class StructureOnly(Coupler):
 
 @hookimpl
 def multilayer_couplers():
-    return [CouplerPlugin(name="structure-only", factory=StructureOnly, params=(scheme_param(tuple(SCHEMES)),),
+    return [CouplerPlugin(name="structure-only", factory=StructureOnly, params=(scheme_param(),),
                           doc="The wall alone: all layers, any time scheme, factorized once.")]

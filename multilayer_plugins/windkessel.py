@@ -49,9 +49,9 @@ class CapacitorState:
 class Windkessel(BoundaryCondition):
     """An RCR Windkessel: proximal resistance R_p, capacitance C, distal resistance R_d, distal pressure P_d.
 
-    >>> from multilayer.numerics.timescheme import SCHEMES
+    >>> from multilayer.numerics.timescheme import named
     >>> w = Windkessel(proximal=10.0, capacitance=1e-3, distal=100.0)
-    >>> be = SCHEMES["backward-euler"]
+    >>> be = named("backward-euler")
     >>> t = w.traction((0.0, 0.1), 0.1, be, [w.initial_state()])
     >>> round(t.resistance - 10.0, 12) == round(0.1 / (1e-3 + 0.1 / 100.0), 12)
     True

@@ -4,10 +4,10 @@ import numpy as np
 
 from multilayer.boundary.contract import BoundaryCondition, EndTraction
 from multilayer.fluid.contract import Domain, FluidSetup, Interface
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer_plugins.planar import Planar
 
-BE = SCHEMES["backward-euler"]
+BE = named("backward-euler")
 
 
 class Given(BoundaryCondition):

@@ -16,7 +16,7 @@ from multilayer.case.model import TimeSpec
 from multilayer.coupling.clock import Adaptive
 from multilayer.functions.loads import CosinePulse, SinePressure, TablePressure
 from multilayer.numerics.stepsize import Controller, local_error, predictor
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
@@ -32,7 +32,7 @@ def test_the_predictor_is_exact_for_quadratics_and_the_estimate_for_cubics_on_un
     t = np.array([0.6, 0.3, 0.2, 0.0])
     assert math.isclose(float(predictor(list(t[1:] ** 2), k)), 0.36, rel_tol=1e-12)
     xs = t ** 3 / 6
-    estimate = local_error(xs[0] + k[0] ** 3 / 12, list(xs[1:]), k)
+    estimate = local_error(xs[0] + k[0] ** 3 / 12, list(xs[1:]), k, named("crank-nicolson"))
     assert math.isclose(float(estimate), k[0] ** 3 / 12, rel_tol=1e-12)
 
 
@@ -107,7 +107,7 @@ def test_steps_land_on_the_output_times_without_a_sliver():
 def clock_for(time, *loads):
     """The adaptive clock of a case with ``time`` whose only loads are ``loads`` (a Crank–Nicolson scheme)."""
     setup = SimpleNamespace(case=SimpleNamespace(time=time, loads=SimpleNamespace(histories=lambda: loads)))
-    return Adaptive(setup, SCHEMES["crank-nicolson"])
+    return Adaptive(setup, named("crank-nicolson"))
 
 
 def test_a_study_puts_adaptive_and_fixed_runs_on_one_front(tmp_path):
@@ -238,12 +238,12 @@ def test_the_splitting_estimate_sees_its_smooth_defect_and_not_the_alternating_o
                         {"splitting.Z": np.array([z[n]]), "splitting.rate": rates[n]}, levels)
     one = np.eye(1)
     d_new = np.array([t[3] ** 3 / 6 + k[0] ** 3 / 12 + z[3]])
-    out = KinematicSplitting.estimate(levels, Window(2, t[2], t[3], k[0], None), d_new, one, one, rates[3])
+    out = KinematicSplitting.estimate(levels, Window(2, t[2], t[3], k[0], named("crank-nicolson")), d_new, one, one, rates[3])
     assert math.isclose(float(out["estimate.wall.d"][0]), k[0] ** 3 / 12, rel_tol=1e-9)
     assert out["estimate.next.wall.d"][0] == 0.0 and math.isclose(float(out["splitting.Z"][0]), z[3], rel_tol=1e-12)
     steady = {**levels.extra, "splitting.rate": np.array([0.5])}
     levels = _Level(levels.n, levels.t, levels.wall.d, steady, levels.previous)
-    out = KinematicSplitting.estimate(levels, Window(2, t[2], t[3], k[0], None), d_new, one, one, np.array([0.5]))
+    out = KinematicSplitting.estimate(levels, Window(2, t[2], t[3], k[0], named("crank-nicolson")), d_new, one, one, np.array([0.5]))
     assert math.isclose(float(out["estimate.next.wall.d"][0]), k[0] * 0.5, rel_tol=1e-12)
 
 
@@ -307,16 +307,17 @@ def test_the_unechoed_estimate_drops_an_alternating_mode_and_keeps_a_smooth_erro
     ratios 2–0.8, 1.4 at 0.5: larger, so smaller steps, where they shrink fast); that of the undamped stiff mode A(−1)ⁿ, which the plain estimate sees at every step (8A/13 for
     even steps), is 0 on any steps."""
     from multilayer.coupling.clock import unechoed
+    cn = named("crank-nicolson")
 
     def estimates(x, steps):  # the plain estimate of the last step and of the one before, on ``steps`` (oldest first)
         t = np.concatenate([[0.0], np.cumsum(steps)])[::-1]
         k = list(np.diff(t[::-1])[::-1])
         values = [np.array([x(tt)]) for tt in t]
-        return [(local_error(values[i], values[i + 1:i + 4], k[i:i + 3]), k[i:i + 3]) for i in (1, 0)]
+        return [(local_error(values[i], values[i + 1:i + 4], k[i:i + 3], cn), k[i:i + 3]) for i in (1, 0)]
 
     def filtered(pair):
         (e_before, k_before), (e_now, k_now) = pair
-        return float(unechoed(e_now, unechoed(e_before, None, k_before)[1], k_now)[0][0]), float(e_now[0])
+        return float(unechoed(e_now, unechoed(e_before, None, k_before, cn)[1], k_now, cn)[0][0]), float(e_now[0])
 
     h = 0.01
     for ratio, low, high in ((1.0, 1.0, 1.0), (2.0, 0.78, 0.79), (1.2, 0.92, 0.94), (0.8, 1.10, 1.11), (0.5, 1.39, 1.41)):

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from runs import assert_resume_is_bit_identical, run_cli
 
-from multilayer.numerics.stepsize import carried, local_error
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.stepsize import local_error
+from multilayer.numerics.timescheme import named
 
 BDF2 = 'coupler={model="monolithic",scheme="bdf2"}'
 #: the start of a pulse from rest grows both the energy and the steps; the G-norm's change at a growing step
@@ -25,7 +25,7 @@ SMALL = ("mesh.nz=12", "mesh.nr=3", "time.dt=1e-6", BDF2, "time.tolerance=1e-3",
 
 def bdf2_step(f, t: float, k: float, k_before: float):
     """One variable-step BDF2 step of x' = f(t) from the exact x = ∫f at tⁿ and tⁿ⁻¹ (x = t³/6, f = t²/2)."""
-    s = SCHEMES["bdf2"].with_ratio(k / k_before)
+    s = named("bdf2").with_ratio(k / k_before)
     x = lambda s_: s_ ** 3 / 6  # noqa: E731
     return (k * f(t + k) - s.alpha[1] * x(t) - s.alpha[2] * x(t - k_before)) / s.alpha[0], x(t + k)
 
@@ -39,7 +39,7 @@ def test_the_bdf2_estimate_is_its_local_error_and_of_third_order(omega):
         t = 0.5
         new, exact = bdf2_step(lambda s: s * s / 2, t, steps[0], steps[1])
         old = [t ** 3 / 6, (t - steps[1]) ** 3 / 6, (t - steps[1] - steps[2]) ** 3 / 6]
-        estimate = float(local_error(new, old, steps, "bdf2"))
+        estimate = float(local_error(new, old, steps, named("bdf2")))
         assert math.isclose(estimate, new - exact, rel_tol=1e-9)
         errors.append(estimate)
     assert math.isclose(errors[0] / errors[1], 8.0, rel_tol=1e-9)
@@ -56,8 +56,8 @@ def test_the_run_error_of_bdf2_is_the_sum_of_its_local_errors_times_alpha0(omega
     for _ in range(200):
         k_new = k * omega
         new, exact = bdf2_step(lambda s: s * s / 2, t[-1], k_new, k)  # the step from exact levels: its local error
-        added += carried("bdf2", [k_new, k]) * (new - exact)
-        s = SCHEMES["bdf2"].with_ratio(k_new / k)
+        added += named("bdf2").carried([k_new, k]) * (new - exact)
+        s = named("bdf2").with_ratio(k_new / k)
         xs.append((k_new * (t[-1] + k_new) ** 2 / 2 - s.alpha[1] * xs[-1] - s.alpha[2] * xs[-2]) / s.alpha[0])
         t.append(t[-1] + k_new)
         k = k_new

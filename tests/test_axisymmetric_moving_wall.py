@@ -32,7 +32,7 @@ from test_fluid_moving_wall import MU, RHO, T0, L, R, eta_law
 
 from multilayer.fluid.contract import Domain
 from multilayer.numerics.linsolve import Reuse
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer_plugins.axisymmetric import Axisymmetric
 from multilayer_plugins.channel import NavierStokes, Stokes, wall_motion
 from multilayer_plugins.channel.ledger import end_fluxes
@@ -104,7 +104,7 @@ def test_energy_identity_mass_balance_and_geometric_conservation_every_step(cls,
 
 
 def test_on_the_midpoint_domain_the_mass_balance_is_the_change_of_volume():
-    fluid, records = march(Stokes, 2, T0 / 20, 10, scheme=SCHEMES["crank-nicolson"])
+    fluid, records = march(Stokes, 2, T0 / 20, 10, scheme=named("crank-nicolson"))
     for rec in records:
         growth = (volume(fluid, rec["eta_new"]) - volume(fluid, rec["eta"])) / rec["dt"]
         assert rec["q"] == pytest.approx(growth, rel=1e-11, abs=1e-12 * abs(wall_flux(fluid, 0 * rec["v"], rec["v"])))

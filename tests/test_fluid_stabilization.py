@@ -33,7 +33,7 @@ from test_fluid_womersley import OMEGA, PERIOD, march, womersley
 
 from multilayer.fluid.contract import Domain, Interface
 from multilayer.functions.loads import ConstantPressure
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named, schemes
 from multilayer_plugins.axisymmetric import Axisymmetric
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
@@ -85,7 +85,7 @@ def test_the_stabilization_vanishes_on_poiseuille_flow(name, dilation):
     eta = np.full(pair[0].line.ndofs, dilation)
     domain = Domain(eta, np.zeros_like(eta))
     for scheme in ("backward-euler", "bdf2", "crank-nicolson"):
-        rows, scale, system = stabilization_rows(pair, [state, state], domain, SCHEMES[scheme], 1e-3, x)
+        rows, scale, system = stabilization_rows(pair, [state, state], domain, named(scheme), 1e-3, x)
         assert system.stabilized is not None and np.max(system.stabilized.tau_m) > 0.0
         assert np.max(np.abs(rows)) <= 1e-12 * scale, (scheme, np.max(np.abs(rows)) / scale)
 
@@ -98,16 +98,16 @@ def test_the_stabilization_is_not_zero_off_a_solution():
     ch = pair[0].channel
     x = np.concatenate([state.u, 3.0 * (1 - ch.pressure.doflocs[0] / 2.0)])
     still = Domain.still(pair[0].line.ndofs)
-    rows, scale, _ = stabilization_rows(pair, [state], still, SCHEMES["backward-euler"], 1e-3, x)
+    rows, scale, _ = stabilization_rows(pair, [state], still, named("backward-euler"), 1e-3, x)
     assert np.max(np.abs(rows)) > 1e-8 * scale  # measured 8.8e-7
 
 
-@pytest.mark.parametrize("scheme", ["backward-euler", "bdf2", "crank-nicolson"])
+@pytest.mark.parametrize("scheme", sorted(schemes()))
 @pytest.mark.parametrize("name", sorted(GEOMETRIES))
 def test_the_ledger_closes_with_the_stabilization_columns(name, scheme):
     """A moving, deformed channel with a Robin wall: the step tested with ū closes with SUPG's and grad-div's
     columns (each by quadrature of the solved fields), and without either it does not."""
-    S = SCHEMES[scheme]
+    S = named(scheme)
     fluid = NavierStokes(1.0, 0.035, grad_div=1.0)
     setup_fluid(fluid, 2.0, 0.5, nz=8, nr=3, geometry=GEOMETRIES[name])
     z, n = fluid.line.z, fluid.line.ndofs
@@ -152,7 +152,7 @@ def centreline_ratio(kind, nz, nr, Q=20.0, steps=100, dt=1e-3, L=6.0, R=0.3):
     fluid = NavierStokes(RHO, MU, stabilization=kind)
     setup_fluid(fluid, L, R, nz, nr, geometry=Axisymmetric(), wall="rigid",
                 ends={"inlet": FlowRate(ConstantPressure(Q))})
-    S, still = SCHEMES["bdf2"], Domain.still(fluid.line.ndofs)
+    S, still = named("bdf2"), Domain.still(fluid.line.ndofs)
     history, t = [fluid.initial_state()], 0.0
     z = np.linspace(0.5, 5.5, 11)
     lo, hi, residual = np.inf, -np.inf, 0.0
@@ -240,7 +240,7 @@ def test_each_part_of_the_momentum_residual(name, dilation):
     pz, pr = ch.pressure.doflocs
     x = np.concatenate([ubar, new[1](pz, s * pr)])
     rows, scale, system = stabilization_rows(pair, [state_old], Domain(eta, np.zeros_like(eta)),
-                                             SCHEMES["backward-euler"], dt, x)
+                                             named("backward-euler"), dt, x)
     stab = system.stabilized
     # the rows by hand: quadrature points in physical coordinates, the test functions' physical gradients
     X = ch.velocity.global_coordinates()

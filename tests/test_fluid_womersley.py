@@ -57,7 +57,7 @@ from fluid_steps import given, setup_fluid
 
 from multilayer.fluid.contract import Domain
 from multilayer.functions.loads import SinePressure
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.probes import l2_error
 from multilayer_plugins.flow_rate import FlowRate
@@ -106,7 +106,7 @@ def march(fluid, exact, G, dt, steps, scheme):
     """``steps`` steps of the set-up ``fluid`` under the mean pressure drop of G L cos ωt, each closing its A2
     identity, from the exact solution at t = 0 and, for a two-step scheme, at t = −Δt (no start-up error):
     the last state and its time."""
-    S = SCHEMES[scheme]
+    S = named(scheme)
     still = Domain.still(fluid.line.ndofs)
     history, t = [fluid.initial_state(exact(0.0)), fluid.initial_state(exact(-dt))], 0.0
     for _ in range(steps):
@@ -137,7 +137,7 @@ def run_flux(order, nz, nr, dt, steps, discrete_reference, Q=1.0, scheme="backwa
     amplitude = flux_amplitude(Q, lam)
     G = RHO * lam * amplitude  # −∂p/∂z: ρλU − μU'' = G
     exact = profile(amplitude, lam)
-    S = SCHEMES[scheme]
+    S = named(scheme)
     fluid = Stokes(RHO, MU)
     inflow = SinePressure(amplitude=Q, frequency=1.0 / PERIOD, phase=np.pi / 2)  # Q cos ωt
     setup_fluid(fluid, L, R, nz=nz, nr=nr, order=order, wall="rigid", ends={"inlet": FlowRate(inflow)})

@@ -28,10 +28,10 @@ def thick_setup():
 @pytest.mark.parametrize("scheme", ["backward-euler", "crank-nicolson"])
 def test_the_impedance_inverts_the_wall_steps_response_on_the_lumen(thick_setup, scheme):
     """S_Γ G = I on the free line DOFs, and a load τ on Γ moves the wall's V̄ by exactly A⁻¹Pτ (linearity)."""
-    from multilayer.numerics.timescheme import SCHEMES
+    from multilayer.numerics.timescheme import named
 
     setup, coupler = thick_setup
-    S = SCHEMES[scheme]
+    S = named(scheme)
     step = StructureStep(setup.stack, S, 1e-4, SolverStats(), fluid_line=LUMEN)
     P, R = setup.wall.prolongations[LUMEN], setup.wall.restrictions[LUMEN]
     impedance, response = interface_impedance(step, P, R, 1e-4)

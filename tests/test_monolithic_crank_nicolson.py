@@ -16,10 +16,10 @@ from runs import CASES, assert_resume_is_bit_identical
 
 from multilayer.api import load_case, run
 from multilayer.coupling.kit import domain_velocity
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer.scene.state import State
 
-CN = SCHEMES["crank-nicolson"]
+CN = named("crank-nicolson")
 
 #: the bundled carotid-like tube (R = 0.3 cm, an intima of ρ₁h = 5.3e-3 g/cm² as a Koiter shell on two bands),
 #: coarse, as a Stokes fluid under a pressure step from rest into p = 0, monolithic Crank–Nicolson
@@ -93,7 +93,7 @@ def test_the_domain_velocity_at_the_start_uses_the_initial_level():
 
 @pytest.mark.parametrize("name", ["backward-euler", "bdf2"])
 def test_schemes_whose_test_level_is_the_new_level_extrapolate_the_velocity_levels(name):
-    scheme = SCHEMES[name]
+    scheme = named(name)
     state = chain([0.0, 0.1, 0.2], [0.0, 0.3, 0.5], [1.0, 2.0, 4.0])
     c = domain_velocity(scheme, state.history(scheme.old_levels), 0.1, lambda x: x.eta, lambda x: x.v)
     np.testing.assert_array_equal(c, scheme.extrapolate([state.v, state.previous.v][: scheme.old_levels]))

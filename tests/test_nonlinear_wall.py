@@ -15,7 +15,7 @@ from multilayer.commands.main import main
 from multilayer.coupling import structure
 from multilayer.coupling.structure import StructureStep
 from multilayer.numerics.linsolve import SolverStats
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import read_run
@@ -129,7 +129,7 @@ def test_crank_nicolsons_correction_stays_on_the_layer():
     forms, space = setup.stack.matrices[0], setup.wall
     rng = np.random.default_rng(1)
     d0, d1 = (setup.stack.zero_fixed(0.05 * rng.standard_normal(space.ndofs)) for _ in range(2))
-    f = structure.step_force(SCHEMES["crank-nicolson"], forms, [d1, d0])
+    f = structure.step_force(named("crank-nicolson"), forms, [d1, d0])
     assert abs(float(f @ (d1 - d0)) - (forms.elastic(d1) - forms.elastic(d0))) <= 1e-12 * forms.elastic(d1)
     off = np.setdiff1d(np.arange(space.ndofs), space.line_dofs(LUMEN))
     assert not np.any(f[off]) and np.any(f - forms.force(0.5 * (d0 + d1)))
@@ -149,7 +149,7 @@ def one_step(layer: dict, scheme: str, dt: float, stats: SolverStats | None = No
     """One wall step of RINGING's wall (with ``layer``) from its initial deflection: the WallStep."""
     data = {**RINGING, "layers": [layer], "time": {"end": dt, "dt": dt}}
     setup = Setup.build(validate_data(data, "/tmp", REGISTRY), REGISTRY)
-    step = StructureStep(setup.stack, SCHEMES[scheme], dt, stats or SolverStats())
+    step = StructureStep(setup.stack, named(scheme), dt, stats or SolverStats())
     return step.step(setup.initial_state(), {})
 
 

@@ -29,7 +29,7 @@ from fluid_steps import BE, given, setup_fluid
 
 from multilayer.fluid.contract import Domain
 from multilayer.numerics.linsolve import Reuse
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer_plugins.axisymmetric import Axisymmetric
 from multilayer_plugins.channel import NavierStokes, Stokes
 from multilayer_plugins.channel.ale import ALEFields
@@ -146,7 +146,7 @@ def test_geometric_conservation_mass_balance_and_energy_identity_every_step(geom
 
 @pytest.mark.parametrize("geometry", GEOMETRIES)
 def test_crank_nicolson_on_the_midpoint_domain_closes_its_identity_and_mass_balance(geometry):
-    fluid, records = march(Stokes, geometry, 2, 10, scheme=SCHEMES["crank-nicolson"])
+    fluid, records = march(Stokes, geometry, 2, 10, scheme=named("crank-nicolson"))
     for rec in records:
         e = rec["energy"]
         assert abs(e["a2.residual"]) <= 1e-12 * e["a2.scale"]

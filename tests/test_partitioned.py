@@ -13,6 +13,7 @@ import pytest
 from runs import CASES, run_cli
 
 from multilayer.commands.main import main
+from multilayer.numerics.timescheme import schemes
 from multilayer.runner.loop import EnergyBound, RunFailed
 
 TINY = ("geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
@@ -29,7 +30,7 @@ def run(tmp_path, coupler, ratio=None, *sets):
     return code, summary, cols
 
 
-@pytest.mark.parametrize("scheme", ["backward-euler", "crank-nicolson"])
+@pytest.mark.parametrize("scheme", sorted(schemes()))  # every registered scheme
 @pytest.mark.parametrize("acceleration", ["iqn-ils", "aitken"])
 def test_implicit_dirichlet_neumann_converges_to_the_monolithic_step(tmp_path, scheme, acceleration):
     code, summary, dn = run(tmp_path / "dn", f'{{model="dirichlet-neumann-implicit",scheme="{scheme}",'

@@ -5,7 +5,7 @@ import pytest
 
 from multilayer.coupling.structure import StructureStep
 from multilayer.numerics.linsolve import SolverStats
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named, schemes
 from multilayer.runner import ledger
 from multilayer.scene.state import State, WallState
 from multilayer.wall.stack import Stack, WallSpace
@@ -44,14 +44,14 @@ def test_stack_places_thin_layers_on_band_boundaries():
         assert abs(M - M.T).max() < 1e-9 * abs(M).max()
 
 
-@pytest.mark.parametrize("scheme", sorted(SCHEMES))
+@pytest.mark.parametrize("scheme", sorted(schemes()))
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("fluid_updates_v", [False, True])
 def test_wall_energy_identity_closes_every_step(order, fluid_updates_v, scheme):
     """Every time scheme's identity (stored energy, numerical dissipation) on the four-layer stack."""
     space, stack = four_layer_stack(order)
     dt, steps = 2e-5, 220
-    S = SCHEMES[scheme]
+    S = named(scheme)
     d0 = space.interpolate(lambda z, r, t: 0.0 * z,
                            lambda z, r, t: 0.01 * np.sin(np.pi * z / L) * np.exp(-(r - R) / 0.1))
     state = State(0, 0.0, WallState(stack.zero_fixed(d0), np.zeros(space.ndofs)),
@@ -90,7 +90,7 @@ def test_identity_detects_a_wrong_term():
     space, stack = four_layer_stack(1, nz=8)
     d0 = space.interpolate(lambda z, r, t: 0.0 * z, lambda z, r, t: 0.01 * np.sin(np.pi * z / L))
     state = State(0, 0.0, WallState(stack.zero_fixed(d0), np.zeros(space.ndofs)))
-    step = StructureStep(stack, SCHEMES["backward-euler"], 1e-4, SolverStats())
+    step = StructureStep(stack, named("backward-euler"), 1e-4, SolverStats())
     previous = sum(step.energy(state).values())
     out = step.step(state, {})
     dissipation = dict(out.dissipation)

@@ -6,7 +6,7 @@ import pytest
 from multilayer.coupling.structure import StructureStep
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.numerics.signals import backward_euler_eigenvalue, prony_roots
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer.scene.state import State, WallState
 from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.linear_elastic import LinearElasticBand
@@ -35,7 +35,7 @@ def measured_eigenvalue(kind, m, n, nz, nr, order, dt, steps=60):
     d0 = stack.zero_fixed(space.interpolate(lambda z, r, t: fz(z, r), lambda z, r, t: fr(z, r)))
     state = State(0, 0.0, WallState(d0, np.zeros_like(d0)))
     stats = SolverStats()
-    step = StructureStep(stack, SCHEMES["backward-euler"], dt, stats)
+    step = StructureStep(stack, named("backward-euler"), dt, stats)
     Md0 = stack.mass @ d0
     amp = [1.0]
     for _ in range(steps):

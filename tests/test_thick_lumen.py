@@ -13,6 +13,7 @@ import pytest
 from runs import CASES, assert_resume_is_bit_identical, run_cli
 
 from multilayer.commands.main import main
+from multilayer.numerics.timescheme import schemes
 
 COARSE = ("mesh.nz=12", "mesh.nr=3", "time.dt=1e-4", "time.end=0.002")
 COUPLERS = {
@@ -53,7 +54,7 @@ def test_thick_lumen_ledger_closes_for_every_coupler_and_scheme(coupler, tmp_pat
     assert np.all(s["dz_z1"] == 0.0)  # the radial gluing: d_z = 0 on the lumen
 
 
-@pytest.mark.parametrize("scheme", ["backward-euler", "crank-nicolson"])
+@pytest.mark.parametrize("scheme", sorted(schemes()))  # every registered scheme
 @pytest.mark.parametrize("acceleration", ["iqn-ils", "aitken"])
 def test_implicit_dirichlet_neumann_agrees_with_monolithic_on_a_thick_lumen(scheme, acceleration, tmp_path):
     code, _, dn = run(tmp_path / "dn", *COARSE, f'coupler={{model="dirichlet-neumann-implicit",scheme="{scheme}",'

@@ -19,7 +19,7 @@ import scipy.linalg as sla
 from multilayer.coupling.structure import StructureStep
 from multilayer.geometry.spaces import make_line_space
 from multilayer.numerics.linsolve import SolverStats
-from multilayer.numerics.timescheme import SCHEMES
+from multilayer.numerics.timescheme import named
 from multilayer.plugin.registry import Registry
 from multilayer.scene.state import State, WallState
 from multilayer.wall.layer import LayerMatrices
@@ -166,7 +166,7 @@ def amplification(layer, nz: int, dt: float, steps: int) -> tuple[complex, compl
     assert np.abs(Kx - k / m * Mx).max() < 1e-13 * scale
     lam_h = (-c + np.sqrt(complex(c * c - 4 * m * k))) / (2 * m)
 
-    step = StructureStep(stack, SCHEMES["backward-euler"], dt, SolverStats())
+    step = StructureStep(stack, named("backward-euler"), dt, SolverStats())
     state = State(0, 0.0, WallState(d=mode.copy(), V=np.zeros_like(mode)))
     antinode = int(np.argmin(np.abs(z - L / 2)))
     signal = [state.wall.d[antinode]]

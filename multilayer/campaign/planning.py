@@ -70,6 +70,8 @@ def _text(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return f"{value:g}"
+    if isinstance(value, Mapping) and "kind" in value:  # a plugin with its parameters: kind(key=value,...)
+        return f"{value['kind']}(" + ",".join(f"{k}={_text(v)}" for k, v in value.items() if k != "kind") + ")"
     return str(value)
 
 
@@ -80,6 +82,8 @@ def coupler_label(model: str, params: Mapping[str, Any]) -> str:
     'kinematic-splitting'
     >>> coupler_label("monolithic", {"scheme": "crank-nicolson", "beta": 0.25})
     'monolithic[scheme=crank-nicolson,beta=0.25]'
+    >>> coupler_label("monolithic", {"scheme": {"kind": "theta", "theta": 0.75}})
+    'monolithic[scheme=theta(theta=0.75)]'
     """
     if not params:
         return model

@@ -43,7 +43,8 @@ from multilayer.case.model import (
     Probe,
     TimeSpec,
 )
-from multilayer.case.partial import NotBuilt, Unbuilt
+from multilayer.case.objections import coupler_objections, coupler_problems
+from multilayer.case.partial import Unbuilt
 from multilayer.case.schema import (
     CELLS,
     FLUID_QUANTITIES,
@@ -122,38 +123,6 @@ def validate_data(data: Mapping[str, Any], base_dir: Path | str = ".", registry:
     """
     registry = registry or Registry.load()
     return _Validator(registry, Path(base_dir)).case(data)
-
-
-def coupler_problems(case: Case, registry: Registry) -> list[Problem]:
-    """Reasons the case's coupler gives against the case (its optional ``check_case``).
-
-    The coupler factory is called with the case's coupler parameters; a
-    ``ValueError`` it raises and every string its ``check_case(case)``
-    returns become problems at ``coupler.model``.  (Validation asks the
-    coupler itself, in the same pass as every other check.)
-    """
-    record = registry.get("coupler", case.coupler.model).record
-    try:
-        coupler = record.factory(**case.coupler.params)
-    except ValueError as exc:
-        return [Problem(case.coupler.path, MISSING, f"{case.coupler.model}: {exc}")]
-    return coupler_objections(coupler, case)
-
-
-def coupler_objections(coupler: Any, case: Case) -> list[Problem]:
-    """Every string ``coupler.check_case(case)`` returns, as a problem at ``coupler.model``.
-
-    ``case`` may have placeholders for parts that could not be built
-    (:mod:`multilayer.case.partial`); a coupler that reads one is not asked now.
-    """
-    check = getattr(coupler, "check_case", None)
-    if check is None:
-        return []
-    try:
-        reasons = list(check(case))
-    except NotBuilt:
-        return []
-    return [Problem(f"{case.coupler.path}.model", case.coupler.model, str(reason)) for reason in reasons]
 
 
 # -- validation -------------------------------------------------------------
@@ -300,7 +269,7 @@ class _Validator:
         """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""
         if self.coupler_object is None:
             return []
-        return coupler_objections(self.coupler_object, case)
+        return coupler_objections(self.coupler_object, case, self.registry)
 
     def model(self, kind: str, spec: Any, path: str, extra: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any], bool] | None:
         """(registered plugin, checked params, params ok) of a ``{model = ..., ...}`` table.
@@ -326,7 +295,35 @@ class _Validator:
             return None
         params, problems = check_params(spec, found.record.params, path, extra=("model", *extra))
         self.add(problems)
-        return found, params, not problems
+        mark = self.mark()
+        self.named_plugins(found.record, params, path)
+        return found, params, not problems and self.mark() == mark
+
+    def named_plugins(self, record: Any, params: dict[str, Any], path: str) -> None:
+        """Each of ``record``'s parameters that names a plugin (``Param.plugin``: a coupler's ``scheme``) looked
+        up in the registry, its own parameters checked and the plugin built once; the value of a plugin with
+        parameters becomes its table with every default filled in (the resolved case is complete), a plugin
+        without any stays its name."""
+        for param in record.params:
+            value = params.get(param.name)
+            if param.plugin is None or value is None:
+                continue
+            where = f"{path}.{param.name}"
+            table = isinstance(value, Mapping)
+            name = value["kind"] if table else value
+            found = self.registry.find(param.plugin, name)
+            if found is None:
+                names = self.registry.names(param.plugin)
+                hint = did_you_mean(name, names) + self.registry.failure_note()
+                expected = ("expected one of " + ", ".join(repr(n) for n in names) if names
+                            else f"no {param.plugin} plugin is installed")
+                self.problems.append(Problem(where, value, expected, hint.removeprefix("; ")))
+                continue
+            checked, problems = check_params(value if table else {}, found.record.params, where, extra=("kind",))
+            self.add(problems)
+            built = None if problems else self.construct(found, checked, where, param.plugin)
+            if built is not None and (table or found.record.params):
+                params[param.name] = {"kind": name, **checked}
 
     def construct(self, found: Any, params: dict[str, Any], path: str, kind: str = "") -> Any:
         """Build the plugin once: only its factory can check constraints across parameters.
@@ -340,7 +337,7 @@ class _Validator:
             self.problems.append(Problem(path, MISSING, f"{found.name}: {problem}"))
             return None
         try:
-            built = found.record.factory(**params)
+            built = found.record.factory(**self.registry.arguments(found.record, params))
             problem = contract_problem(kind, built)
             if problem is None:
                 return built

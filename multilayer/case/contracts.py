@@ -9,7 +9,8 @@ one (the import contracts of ``pyproject.toml``), so a coupler is known by
 the methods that class declares abstract, :data:`COUPLER_METHODS`
 (``tests/test_hostile_inputs.py`` keeps the two in step).  Layers are checked
 by :func:`multilayer.wall.checks.type_problem`, geometries and the ends'
-conditions where they are built.
+conditions where they are built.  A time scheme must be a
+:class:`~multilayer.numerics.timescheme.TimeScheme`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 from typing import Any
 
 from multilayer.fluid.contract import Fluid
+from multilayer.numerics.timescheme import TimeScheme
 
 #: the abstract methods of :class:`multilayer.coupling.contract.Coupler`: what makes an object a coupler
 COUPLER_METHODS = ("energy", "evolve")
@@ -32,6 +34,8 @@ def contract_problem(kind: str, built: Any) -> str | None:
     """
     if kind == "fluid" and not isinstance(built, Fluid):
         return f"the plugin's factory returned {type(built).__name__}, not a Fluid"
+    if kind == "scheme" and not isinstance(built, TimeScheme):
+        return f"the plugin's factory returned {type(built).__name__}, not a TimeScheme"
     if kind == "coupler":
         missing = [m for m in COUPLER_METHODS if not callable(getattr(built, m, None))]
         if missing:

@@ -7,9 +7,11 @@ a rejected step is simply dropped: the retry starts from the same state.
 
 Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps"):
 
-* the error of a step is the scheme's local error estimate, Crank–Nicolson's or
-  BDF2's (:func:`multilayer.numerics.stepsize.local_error`: no extra linear solve; BDF2's
-  times α₀, the part that stays in the run's error, :func:`~multilayer.numerics.stepsize.carried`) of
+* the error of a step is the scheme's local error estimate (a scheme that
+  :attr:`~multilayer.numerics.timescheme.TimeScheme.estimates_error`: Crank–Nicolson's,
+  BDF2's; :func:`multilayer.numerics.stepsize.local_error`: no extra linear solve; times
+  the part that stays in the run's error, BDF2's α₀:
+  :meth:`~multilayer.numerics.timescheme.TimeScheme.carried`) of
   the wall displacement d and of the fluid velocity's time integral X
   (:func:`fields`: the velocities through their integrals), each in the max
   norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
@@ -30,7 +32,8 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   is charged for the error it makes, not for what earlier steps left: with
   Crank–Nicolson its estimate drops the echo of an undamped (−1)ⁿ mode
   (:func:`unechoed`), which would otherwise be charged again at every step
-  and, N_W growing as the steps shrink, drive them to ``time.dt_min``;
+  and, N_W growing as the steps shrink, drive them to ``time.dt_min``
+  (a scheme that :attr:`~multilayer.numerics.timescheme.TimeScheme.undamped` carries such modes);
 * or, with ``time.control = "per-unit-step"``, e is asked per unit of elapsed
   time, over at most the memory time W: err = e · min(tⁿ⁺¹, W) / (kₙ · tol), so a step
   may add tol·kₙ/min(tⁿ⁺¹, W) of the field's size and the errors of any span
@@ -44,7 +47,8 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   smaller; one that would go below ``time.dt_min`` stops the run
   (:class:`SchemeFailure`, every row so far kept);
 * the first two steps are ``time.dt`` (the estimate needs three old levels);
-* a multistep rule's step is at most :data:`~multilayer.numerics.stepsize.GROW` = 2 times
+* the step of a scheme with a bounded step ratio (:attr:`~multilayer.numerics.timescheme.TimeScheme.max_ratio`)
+  is at most :data:`~multilayer.numerics.stepsize.GROW` = 2 times
   the one before: variable-step BDF2 is zero-stable for ratios below 1 + √2 only
   (:meth:`~multilayer.numerics.timescheme.TimeScheme.with_ratio`), and a step after
   one clipped to land would otherwise jump back by up to 4;
@@ -67,7 +71,7 @@ import numpy as np
 
 from multilayer.case.model import Case
 from multilayer.coupling.contract import SchemeFailure, StepReport
-from multilayer.numerics.stepsize import GROW, Controller, carried, local_error
+from multilayer.numerics.stepsize import GROW, Controller, local_error
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.scene.setup import Setup
 from multilayer.scene.state import State
@@ -206,7 +210,7 @@ class Adaptive:
 
         A field's local error is the coupler's own estimate where it put one in
         ``new.extra["estimate.<field>"]`` (the splitting's), else the scheme's
-        estimate :func:`local_error` of the field (times :func:`carried`).  What a coupler puts in
+        estimate :func:`local_error` of the field (times its ``carried``).  What a coupler puts in
         ``new.extra["estimate.next.<field>"]`` comes out as ``next.<field>``: an error
         that bounds the next step and does not reject this one.
         """
@@ -223,9 +227,9 @@ class Adaptive:
             scale = max(record[f"peak.{name}"], self.size(x, levels[0][name], new.t, dt))
             given = new.extra.get(f"estimate.{name}")
             if given is None:
-                given = local_error(x, [lv[name] for lv in levels], k, self.scheme.name) * carried(self.scheme.name, k)
-                if self.per_step and self.scheme.name == "crank-nicolson":
-                    given, raw[f"echo.{name}"] = unechoed(given, state.extra.get(f"echo.{name}"), k)
+                given = local_error(x, [lv[name] for lv in levels], k, self.scheme) * self.scheme.carried(k)
+                if self.per_step and self.scheme.undamped:
+                    given, raw[f"echo.{name}"] = unechoed(given, state.extra.get(f"echo.{name}"), k, self.scheme)
             estimates = {name: given, f"next.{name}": new.extra.get(f"estimate.next.{name}")}
             for key, e in estimates.items():
                 if e is not None:
@@ -309,26 +313,29 @@ class Adaptive:
                 "error.next": ahead, **{f"error.{name}": (errors or {}).get(name, 0.0) for name in FIELDS}})
 
 
-def alternating(k: list[float]) -> float:
-    """μ: Crank–Nicolson's estimate (:func:`local_error`) of the undamped mode xⁿ = (−1)ⁿ on the steps ``k``.
+def alternating(k: list[float], scheme: TimeScheme) -> float:
+    """μ: the ``scheme``'s estimate (:func:`local_error`) of the undamped mode xⁿ = (−1)ⁿ on the steps ``k``.
 
     The mode that a stiff, undamped component leaves (amplification −1 when
-    ωΔt ≫ 1), seen at xⁿ = 1: −8/13 for even steps; its size depends on the
-    step ratios only.
+    ωΔt ≫ 1), seen at xⁿ = 1: −8/13 for Crank–Nicolson's even steps; its size
+    depends on the step ratios only.
 
-    >>> round(alternating([0.1, 0.1, 0.1]), 12), round(alternating([0.2, 0.1, 0.1]), 12)
+    >>> from multilayer.numerics.timescheme import named
+    >>> cn = named("crank-nicolson")
+    >>> round(alternating([0.1, 0.1, 0.1], cn), 12), round(alternating([0.2, 0.1, 0.1], cn), 12)
     (-0.615384615385, -2.571428571429)
     """
-    return float(local_error(np.array(-1.0), [np.array(1.0), np.array(-1.0), np.array(1.0)], k))
+    return float(local_error(np.array(-1.0), [np.array(1.0), np.array(-1.0), np.array(1.0)], k, scheme))
 
 
-def unechoed(e: np.ndarray, before: np.ndarray | None, k: list[float]) -> tuple[np.ndarray, np.ndarray]:
-    """(Crank–Nicolson's local error estimate ``e`` of a step without the echo of an undamped (−1)ⁿ mode,
+def unechoed(e: np.ndarray, before: np.ndarray | None, k: list[float],
+             scheme: TimeScheme) -> tuple[np.ndarray, np.ndarray]:
+    """(An undamped ``scheme``'s local error estimate ``e`` of a step without the echo of an undamped (−1)ⁿ mode,
     ``e``/μ for the next step's call).
 
     ``before`` is the step before's ``e``/μ (None: ``e`` is returned as it is),
     μ = :func:`alternating` of each step's ratios; the estimate is
-    ½ μₙ₊₁ (eⁿ⁺¹/μₙ₊₁ + eⁿ/μₙ). A stiff mode that Crank–Nicolson carries
+    ½ μₙ₊₁ (eⁿ⁺¹/μₙ₊₁ + eⁿ/μₙ). A stiff mode that the scheme (Crank–Nicolson) carries
     undamped flips sign every step, and the predictor's miss of it is μ times
     its value, so eⁿ⁺¹/μₙ₊₁ = −eⁿ/μₙ and the estimate is 0 whatever the step
     ratios: an oscillation made once is not counted again at every later step
@@ -337,12 +344,13 @@ def unechoed(e: np.ndarray, before: np.ndarray | None, k: list[float]) -> tuple[
     0.78–1.10 of it at step ratios 2–0.8, and larger where steps shrink faster
     (1.4 at 0.5) (theory §4, "The echo of an undamped mode").
 
-    >>> k = [0.1, 0.1, 0.1]
-    >>> mu = alternating(k)
-    >>> unechoed(np.array([1.0, 2.0]), np.array([1.0, -2.0]) / mu, k)[0]     # smooth, alternating
+    >>> from multilayer.numerics.timescheme import named
+    >>> k, cn = [0.1, 0.1, 0.1], named("crank-nicolson")
+    >>> mu = alternating(k, cn)
+    >>> unechoed(np.array([1.0, 2.0]), np.array([1.0, -2.0]) / mu, k, cn)[0]     # smooth, alternating
     array([1., 0.])
     """
-    mu = alternating(k)
+    mu = alternating(k, scheme)
     if before is None:
         return e, e / mu
     return 0.5 * (e + mu * before), e / mu

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, ClassVar
 import attrs
 
 from multilayer.functions.loads import is_zero
-from multilayer.numerics.timescheme import SCHEMES, TimeScheme
+from multilayer.numerics.timescheme import TimeScheme, named
 
 if TYPE_CHECKING:  # pragma: no cover
 
@@ -55,21 +55,36 @@ class Coupler(ABC):
 
     #: the loads (keys of ``[loads]``) this coupler applies; any other must be left at 0
     loads: ClassVar[tuple[str, ...]] = ()
-    #: the time schemes (:data:`multilayer.numerics.timescheme.SCHEMES`) it offers; its ``scheme`` parameter
-    schemes: ClassVar[tuple[str, ...]] = ("backward-euler",)
-    #: the schemes with which it takes adaptive steps (``[time] tolerance``): those it has an error estimate for
-    adaptive: ClassVar[tuple[str, ...]] = ()
+    #: True when it takes adaptive steps (``[time] tolerance``) with a scheme that estimates its local error
+    #: (:attr:`~multilayer.numerics.timescheme.TimeScheme.estimates_error`): its steps go through
+    #: :func:`multilayer.coupling.clock.march`
+    adaptive: ClassVar[bool] = False
 
-    def __init__(self, scheme: str = "backward-euler"):
-        if scheme not in self.schemes:
-            raise ValueError(f"scheme {scheme!r} is not offered; choose one of {', '.join(self.schemes)}")
-        self.scheme: TimeScheme = SCHEMES[scheme]
+    def __init__(self, scheme: TimeScheme | str = "backward-euler"):
+        #: the time scheme (a plugin): the case's ``coupler.scheme``, built (a name is looked up among the
+        #: installed schemes)
+        self.scheme: TimeScheme = scheme if isinstance(scheme, TimeScheme) else named(scheme)
+
+    def scheme_problems(self, scheme: TimeScheme) -> list[str]:
+        """Why this coupler cannot step with ``scheme`` (empty when it can), from the scheme's capabilities.
+
+        The case validator reports each at ``coupler.scheme``, with the registered schemes the coupler
+        does take.  The built-in couplers step one linear multistep rule per step: a multi-stage scheme
+        (:attr:`~multilayer.numerics.timescheme.TimeScheme.stages`) needs a coupler that loops over its stages.
+        """
+        stages = len(scheme.stages)
+        if stages == 1:
+            return []
+        name = getattr(self, "name", type(self).__name__)
+        return [f"{scheme.name} has {stages} stages a step, and {name} steps one linear multistep stage a step"]
 
     def check_case(self, case: Case) -> list[str]:
         """Reasons this coupler cannot run ``case`` (empty when it can).
 
         Called by the case validator, so ``multilayer validate`` reports them.
         The default rejects a non-zero load that the coupler would ignore.
+        (Whether it can step with its scheme, and take the case's adaptive steps with
+        it, the validator asks :meth:`scheme_problems` and :attr:`adaptive`.)
         """
         name = getattr(self, "name", type(self).__name__)
         def set_(key):
@@ -77,35 +92,18 @@ class Coupler(ABC):
             return not load.at_rest() if key in ("inlet", "outlet") else not is_zero(load)
 
         return [f"loads.{key} is set, but {name} does not apply it (it applies: {', '.join(self.loads) or 'none'})"
-                for key in ("inlet", "outlet", "external", "interface") if key not in self.loads and set_(key)
-                ] + self.adaptive_problems(case)
-
-    def adaptive_problems(self, case: Case) -> list[str]:
-        """Why ``case``'s adaptive steps (``time.tolerance``) cannot be taken: no error estimate for the scheme."""
-        if case.time.tolerance is None or self.scheme.name in self.adaptive:
-            return []
-        name = getattr(self, "name", type(self).__name__)
-        offered = (f"it takes them with scheme = {' or '.join(repr(s) for s in self.adaptive)}" if self.adaptive
-                   else "choose 'monolithic' with scheme = 'crank-nicolson' or 'bdf2', or 'kinematic-splitting' "
-                        "with scheme = 'crank-nicolson'")
-        why = "first order" if self.scheme.order == 1 else f"not estimated in {name}"
-        reason = (f"time.tolerance = {case.time.tolerance:g} asks for adaptive steps, which {name} with scheme "
-                  f"{self.scheme.name!r} does not take (no error estimate: {self.scheme.name} is {why}); "
-                  f"{offered}, or remove time.tolerance")
-        return [reason]
+                for key in ("inlet", "outlet", "external", "interface") if key not in self.loads and set_(key)]
 
     def energy_bound_note(self, case: Case) -> str:
         """What the runner adds when a step breaks E ≤ E⁰ + work beyond ``solver.energy_margin`` (empty: nothing).
 
-        Variable-step BDF2 is not G-stable for growing steps: its energy may exceed E⁰ + work by a few percent
-        without any instability (docs/theory.md, "Variable-step BDF2").
+        With adaptive steps, the scheme's own note
+        (:attr:`~multilayer.numerics.timescheme.TimeScheme.adaptive_energy_note`): variable-step BDF2 is not
+        G-stable for growing steps, and its energy may exceed E⁰ + work by a few percent without any instability.
         """
-        if case.time.tolerance is None or self.scheme.levels <= 2:
+        if case.time.tolerance is None:
             return ""
-        return (f" — or not: with adaptive steps, {self.scheme.name}'s energy may exceed E⁰ + work by a few percent "
-                f"of the work while the steps grow, without instability (its G-norm depends on the step ratio: "
-                f"docs/theory.md, 'Variable-step BDF2'); set solver.energy_margin = 0.05")
-
+        return self.scheme.adaptive_energy_note
 
     def fluid_wall(self, case: Case) -> str:
         """How the fluid sees the wall: ``coupled``, ``rigid`` or ``prescribed``."""

@@ -72,7 +72,7 @@ class ThickLumen:
     domain axially (:func:`predicted_domain`).
     """
 
-    def __init__(self, scheme: str = "backward-euler", lumen: str = "no-slip"):
+    def __init__(self, scheme: TimeScheme | str = "backward-euler", lumen: str = "no-slip"):
         super().__init__(scheme)
         if lumen not in LUMEN_CONDITIONS:
             raise ValueError(f"lumen {lumen!r} is not one of {', '.join(LUMEN_CONDITIONS)}")

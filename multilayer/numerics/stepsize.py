@@ -1,4 +1,4 @@
-"""Steps chosen by error: the local error estimates of Crank–Nicolson and BDF2, and the step-size controller.
+"""Steps chosen by error: the local error estimate of a step, and the step-size controller.
 
 The estimate (derivation in docs/theory.md, "Adaptive steps") compares the
 corrector's value x^{n+1} with an explicit AB2-type predictor built from
@@ -11,38 +11,30 @@ extrapolated linearly to tⁿ⁺½ they give
 exact for quadratics (AB2 with midpoint slopes; it is the quadratic through
 xⁿ⁻², xⁿ⁻¹, xⁿ evaluated at tⁿ⁺¹).  Its error is, to leading order,
 
-    x(tⁿ⁺¹) − x^p = kₙ(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)/6 x''',
+    x(tⁿ⁺¹) − x^p = P x''',    P = kₙ(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)/6,
 
-and the correctors' local errors are
-
-    Crank–Nicolson:  x^{n+1} − x(tⁿ⁺¹) = kₙ³/12 x''',
-    BDF2:            x^{n+1} − x(tⁿ⁺¹) = kₙ²(kₙ + kₙ₋₁)/(6α₀) x''',   α₀ = (1 + 2ω)/(1 + ω), ω = kₙ/kₙ₋₁,
-
-so the local error is the computed difference scaled (Milne's device, :func:`milne`):
-
-    Crank–Nicolson:  e = kₙ² / (kₙ² + 2(kₙ + kₙ₋₁)(kₙ + kₙ₋₁ + kₙ₋₂)) · (x^{n+1} − x^p)   (1/13 for equal steps),
-    BDF2:            e = kₙ / (kₙ + α₀(kₙ + kₙ₋₁ + kₙ₋₂)) · (x^{n+1} − x^p)               (2/11 for equal steps).
-
+and a second-order corrector's local error is x^{n+1} − x(tⁿ⁺¹) = c x''' with a constant c of its
+own (Crank–Nicolson's kₙ³/12, BDF2's kₙ²(kₙ + kₙ₋₁)/(6α₀)), so the local error is the computed
+difference scaled (Milne's device): e = c/(c + P) · (x^{n+1} − x^p).  The scheme owns that factor
+(:meth:`TimeScheme.milne <multilayer.numerics.timescheme.TimeScheme.milne>`) and how much of a step's
+local error stays in the run's error (:meth:`~multilayer.numerics.timescheme.TimeScheme.carried`).
 No linear solve: the predictor is three old levels.
 
->>> k = [0.1, 0.1, 0.1]
->>> t = np.array([0.3, 0.2, 0.1, 0.0])
->>> xs = [t[i] ** 3 / 6 for i in range(4)]          # x''' = 1
->>> cn = xs[0] + k[0] ** 3 / 12                       # the CN value: exact + its local error
->>> round(float(local_error(cn, xs[1:], k) / (k[0] ** 3 / 12)), 12)
-1.0
->>> round(milne("crank-nicolson", k), 12), round(milne("bdf2", k), 12)
-(0.076923076923, 0.181818181818)
+>>> t = [0.2, 0.1, 0.0]; k = [0.1, 0.1, 0.1]
+>>> round(float(predictor([x * x for x in t], k)), 12)      # exact for quadratics: 0.3²
+0.09
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import attrs
 import numpy as np
 
-from multilayer.numerics.timescheme import bdf2_alpha
+if TYPE_CHECKING:  # pragma: no cover
+    from multilayer.numerics.timescheme import TimeScheme
 
 #: the controller's exponents (Gustafsson's PI controller as in Hairer & Wanner, II §IV.2): the step
 #: factor is SAFETY · err^(−KI/q) · err_prev^(KP/q), q = 3 for the error per step of a second-order rule (q = 2
@@ -62,42 +54,10 @@ def predictor(old: Sequence[np.ndarray], k: Sequence[float]) -> np.ndarray:
     return old[0] + k[0] * (d_now + (k[0] + k[1]) / (k[1] + k[2]) * (d_now - d_before))
 
 
-def bdf2_alpha0(k: Sequence[float]) -> float:
-    """Variable-step BDF2's α₀ = (1 + 2ω)/(1 + ω) (:func:`~multilayer.numerics.timescheme.bdf2_alpha`) for the
-    steps k = [kₙ, kₙ₋₁, ...], ω = kₙ/kₙ₋₁."""
-    return bdf2_alpha(k[0] / k[1])[0]
-
-
-def milne(scheme: str, k: Sequence[float]) -> float:
-    """e/(x^{n+1} − x^p): ``scheme``'s local error of x^{n+1} over its distance from the predictor (module docstring).
-
-    >>> round(milne("bdf2", [0.2, 0.1, 0.1]), 12)        # ω = 2, α₀ = 5/3: 0.2/(0.2 + 5/3 · 0.4) = 3/13
-    0.230769230769
-    """
-    if scheme == "crank-nicolson":
-        return k[0] ** 2 / (k[0] ** 2 + 2.0 * (k[0] + k[1]) * (k[0] + k[1] + k[2]))
-    if scheme == "bdf2":
-        return k[0] / (k[0] + bdf2_alpha0(k) * (k[0] + k[1] + k[2]))
-    raise ValueError(f"no local error estimate for {scheme!r}; there is one for crank-nicolson and bdf2")
-
-
-def carried(scheme: str, k: Sequence[float]) -> float:
-    """How much of a step's local error stays in the run's (smooth) error: 1 for a one-step rule, α₀ for BDF2.
-
-    BDF2's error recursion α₀(eⁿ⁺¹ − eⁿ) − α₂(eⁿ − eⁿ⁻¹) = kₙτ + …, for a smooth error
-    (eⁿ − eⁿ⁻¹ ≈ (eⁿ⁺¹ − eⁿ)/ω), is (α₀ − α₂/ω)(eⁿ⁺¹ − eⁿ) = eⁿ⁺¹ − eⁿ = kₙτ: a step adds its
-    truncation error kₙτ = α₀ · (its local error), not the local error itself (docs/theory.md, "Adaptive steps").
-
-    >>> carried("crank-nicolson", [0.1, 0.1, 0.1]), carried("bdf2", [0.1, 0.1, 0.1])
-    (1.0, 1.5)
-    """
-    return bdf2_alpha0(k) if scheme == "bdf2" else 1.0
-
-
-def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float],
-                scheme: str = "crank-nicolson") -> np.ndarray:
-    """The local error of ``scheme``'s x^{n+1} = ``new`` (module docstring)."""
-    return milne(scheme, k) * (new - predictor(old, k))
+def local_error(new: np.ndarray, old: Sequence[np.ndarray], k: Sequence[float], scheme: TimeScheme) -> np.ndarray:
+    """The local error of ``scheme``'s x^{n+1} = ``new`` from the old levels ``old`` on the steps ``k`` (module
+    docstring): the scheme's Milne factor times x^{n+1} − x^p."""
+    return scheme.milne(k) * (new - predictor(old, k))
 
 
 @attrs.frozen

@@ -1,128 +1,53 @@
-"""Time discretizations as values, each with its discrete energy identity.
+"""Time schemes: the contract a time-scheme plugin implements, and the linear multistep rule its stages follow.
 
-A scheme is a linear multistep rule with coefficients α (the difference
-quotient) and β (where the operator is evaluated), levels newest first:
+A time scheme is a plugin (``multilayer_schemes``, :class:`~multilayer.plugin.records.SchemePlugin`):
+one module per scheme, ``multilayer_plugins/schemes/`` for the built-in ones, each a subclass of
+:class:`TimeScheme`.  The core and the couplers ask a scheme for what they need — its weights, its
+energy identity, its error estimate, where its geometry sits — and never for its name.
+
+A step is a sequence of **stages** (:attr:`TimeScheme.stages`), each a linear multistep rule with
+coefficients α (the difference quotient) and β (where the operator is evaluated), levels newest first:
 
     Σ_k α_k x^{n+1−k} / Δt · M  +  A x̄  =  F̄,      x̄ = Σ_k β_k x^{n+1−k}.
 
-Every sub-problem of the project (a wall step, a fluid step, both at once)
-is solved for the *test-level* unknown x̄: the matrix is
-(α₀/β₀) M/Δt + A and only old levels move to the right-hand side.  For
-Crank–Nicolson x̄ is the midpoint value and the step is a backward-Euler
-step of Δt/2 followed by the extrapolation x^{n+1} = 2x̄ − xⁿ (the
-refactorized midpoint rule); for backward Euler and BDF2, x̄ = x^{n+1}.
+Backward Euler, Crank–Nicolson and BDF2 are single-stage: the scheme is its own stage.  Every
+sub-problem of the project (a wall step, a fluid step, both at once) is solved for the *test-level*
+unknown x̄: the matrix is (α₀/β₀) M/Δt + A and only old levels move to the right-hand side.  For
+Crank–Nicolson x̄ is the midpoint value and the step is a backward-Euler step of Δt/2 followed by the
+extrapolation x^{n+1} = 2x̄ − xⁿ (the refactorized midpoint rule); for backward Euler and BDF2, x̄ = x^{n+1}.
 
 Testing with x̄ gives the energy identity of the scheme, for q(x) = ½xᵀMx:
 
     (Σ_k α_k x^{n+1−k})ᵀ M x̄ = stored(q, xⁿ⁺¹…) − before(q, xⁿ⁺¹…) + numerical(q, xⁿ⁺¹…)
 
-where ``stored`` is the energy the scheme carries at the new level (q itself
-for backward Euler and Crank–Nicolson, the G-norm ½(q(x^{n+1}) + q(2x^{n+1} − xⁿ))
-for BDF2), ``before`` the same at the old level as the step before stored it,
-and ``numerical`` the numerical dissipation (≥ 0 for constant steps, zero for
-Crank–Nicolson).  Variable-step BDF2 (:meth:`TimeScheme.with_ratio`, docs/theory.md
-"Variable-step BDF2") has a G-norm that depends on the step ratio ω; the change
-of it from one step to the next is part of ``numerical``, so the identity stays
-exact with changing Δt.
-
->>> import numpy as np
->>> M = np.diag([2.0, 3.0]); q = lambda x: 0.5 * x @ M @ x
->>> rng = np.random.default_rng(0)
->>> ratios = {"bdf2": [(1.0, 1.0), (1.7, 1.0), (0.4, 2.0), (2.0, 0.5)]}
->>> for s in SCHEMES.values():
-...     for ratio, before in ratios.get(s.name, [(1.0, 1.0)]):
-...         v = s.with_ratio(ratio, before)
-...         xs = [rng.normal(size=2) for _ in range(s.levels)]
-...         lhs = v.difference(xs) @ M @ v.average(xs)
-...         rhs = v.stored(q, xs) - v.before(q, xs) + v.numerical(q, xs)
-...         print(s.name, ratio, abs(lhs - rhs) < 1e-12)
-backward-euler 1.0 True
-crank-nicolson 1.0 True
-bdf2 1.0 True
-bdf2 1.7 True
-bdf2 0.4 True
-bdf2 2.0 True
+where ``stored`` is the energy the scheme carries at the new level, ``before`` the same at the old level
+as the step before stored it, and ``numerical`` the numerical dissipation.  Each scheme states its own
+(the built-in ones: docs/theory.md §4); every registered scheme is checked against this identity on
+random vectors (``tests/test_timescheme.py``).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
 
 import attrs
 import numpy as np
 
 from multilayer.plugin.records import Param
+from multilayer.plugin.registry import Registry
 
 Quadratic = Callable[[np.ndarray], float]
 
 
-@attrs.frozen
-class TimeScheme:
-    """One linear multistep rule.  See the module docstring.
+class LinearMultistep:
+    """The rule Σα_k x^{n+1−k}/Δt·M + A x̄ = F̄, x̄ = Σβ_k x^{n+1−k}, from its ``alpha`` and ``beta`` (levels newest
+    first): what a stage, and a single-stage scheme, computes with its weights."""
 
-    Parameters
-    ----------
-    name : str
-        The name a case file uses.
-    alpha, beta : tuple of float
-        Coefficients of x^{n+1}, xⁿ, x^{n−1}, ... (Σα = 0, Σβ = 1).
-    order : int
-        Order of accuracy in time.
-    ratio : float
-        ω = Δtⁿ/Δtⁿ⁻¹, the step's ratio to the one before (1 for constant steps): the
-        extrapolations see it, and BDF2's α (:meth:`with_ratio`).
-    previous : float
-        The ratio of the step before (BDF2's G-norm of the old level is that step's).
-    """
-
-    name: str
     alpha: tuple[float, ...]
     beta: tuple[float, ...]
-    order: int
-    ratio: float = 1.0
-    previous: float = 1.0
-
-    def with_ratio(self, ratio: float, previous: float = 1.0) -> TimeScheme:
-        """This rule for a step ω = ``ratio`` times the one before, which was ``previous`` times its own.
-
-        One-step rules keep their coefficients (Crank–Nicolson's identity holds
-        step by step with that step's Δt).  BDF2 differentiates the quadratic
-        through x^{n+1}, xⁿ, x^{n−1} at t^{n+1}:
-
-            α = ((1 + 2ω)/(1 + ω), −(1 + ω), ω²/(1 + ω)),
-
-        zero-stable for ω < 1 + √2 (:attr:`max_ratio`; asking for more is an error).
-
-        >>> SCHEMES["crank-nicolson"].with_ratio(2.0).extrapolate([1.0, 0.0])
-        2.0
-        >>> s = SCHEMES["bdf2"].with_ratio(2.0)
-        >>> [round(a, 12) for a in s.alpha], sum(s.alpha)
-        ([1.666666666667, -3.0, 1.333333333333], 0.0)
-
-        Exact on quadratics with uneven steps (Δtⁿ = 0.2 after Δtⁿ⁻¹ = 0.1): Σα_k x^{n+1−k}/Δt = x'(t^{n+1}).
-
-        >>> t = [0.3, 0.1, 0.0]
-        >>> [round(float(s.difference([f(x) for x in t]) / 0.2), 12) for f in (lambda x: 1.0 + 0 * x,
-        ...                                                                    lambda x: x, lambda x: x * x)]
-        [0.0, 1.0, 0.6]
-        >>> SCHEMES["bdf2"].with_ratio(2.5)
-        Traceback (most recent call last):
-        ...
-        ValueError: bdf2 is stable for step ratios below 2.414 (1 + √2), got 2.5
-        """
-        if self.levels <= 2:
-            return attrs.evolve(self, ratio=float(ratio), previous=float(previous))
-        if not 0.0 < ratio < self.max_ratio:
-            raise ValueError(f"{self.name} is stable for step ratios below {self.max_ratio:.4g} (1 + √2), "
-                             f"got {ratio:g}")
-        w = float(ratio)
-        return attrs.evolve(self, alpha=bdf2_alpha(w), ratio=w, previous=float(previous))
-
-    @property
-    def max_ratio(self) -> float:
-        """The largest step ratio ω the rule takes: 1 + √2 for BDF2 (zero stability), none for one-step rules."""
-        return 1.0 + math.sqrt(2.0) if self.levels > 2 else math.inf
 
     @property
     def levels(self) -> int:
@@ -130,30 +55,16 @@ class TimeScheme:
         return len(self.alpha)
 
     @property
-    def old_levels(self) -> int:
-        """Old levels a step needs: the rule's, and two for a second-order scheme's extrapolations.
-
-        >>> [s.old_levels for s in SCHEMES.values()]
-        [1, 2, 2]
-        """
-        return max(len(self.alpha) - 1, self.order)
-
-    @property
-    def theta(self) -> float:
-        """Where the operator is evaluated, as a fraction of the step: t = tⁿ + θΔt.
-
-        >>> SCHEMES["crank-nicolson"].theta, SCHEMES["bdf2"].theta
-        (0.5, 1.0)
-        """
-        return float(sum(b * (1 - k) for k, b in enumerate(self.beta)))
-
-    @property
     def inertia(self) -> float:
         """α₀/β₀: the matrix of the step is inertia·M/Δt + A.  Δt/inertia is the step of the
         equivalent backward-Euler solve (Δt/2 for Crank–Nicolson)."""
         return self.alpha[0] / self.beta[0]
 
-    # -- the rule ----------------------------------------------------------------
+    @property
+    def theta(self) -> float:
+        """Where the operator is evaluated, as a fraction of the step: t = tⁿ + θΔt (θ = Σβ_k(1 − k))."""
+        return float(sum(b * (1 - k) for k, b in enumerate(self.beta)))
+
     def difference(self, xs: Sequence[np.ndarray]) -> np.ndarray:
         """Σ α_k x^{n+1−k} (Δt times the discrete time derivative); ``xs`` newest first."""
         return sum(a * x for a, x in zip(self.alpha, xs))
@@ -184,6 +95,97 @@ class TimeScheme:
         b0, a0 = self.beta[0], self.alpha[0]
         return sum((b - b0 * a / a0) * d for a, b, d in zip(self.alpha[1:], self.beta[1:], old_d))
 
+
+@attrs.frozen
+class Stage(LinearMultistep):
+    """One stage of a step: a linear multistep rule over the stage's levels, ending at tⁿ + ``fraction``·Δt.
+
+    A stage's levels are, newest first, its own new value, the values of the step's earlier stages
+    (latest first), then the step's old levels xⁿ, x^{n−1}, ...; α is scaled to the whole step's Δt
+    (Σα_k x_k/Δt is the stage's derivative).  A single-stage scheme has one stage, itself, with
+    ``fraction`` = 1.
+
+    >>> Stage((1.0, -1.0), (0.5, 0.5)).theta
+    0.5
+    """
+
+    alpha: tuple[float, ...] = attrs.field(converter=tuple)
+    beta: tuple[float, ...] = attrs.field(converter=tuple)
+    fraction: float = 1.0
+
+
+@attrs.frozen
+class TimeScheme(LinearMultistep):
+    """A time scheme, as a plugin implements it (subclass it; see the module docstring).
+
+    A single-stage scheme defines :attr:`alpha` and :attr:`beta` (as properties, or attributes), the
+    class attributes :attr:`name` and :attr:`order`, its energy identity (:meth:`stored`,
+    :meth:`numerical`; :meth:`before` follows) and its :meth:`geometry`; everything else has a default
+    a scheme may override: its error estimate for adaptive steps (:meth:`milne`, :meth:`carried`,
+    :attr:`estimates_error`), what a change of step size means to it (:meth:`with_ratio`,
+    :attr:`max_ratio`), its load window and extrapolation.  A subclass's own fields are its
+    parameters (:attr:`parameters`); ``ratio`` and ``previous`` are the step's.
+
+    Parameters
+    ----------
+    ratio : float
+        ω = Δtⁿ/Δtⁿ⁻¹, the step's ratio to the one before (1 for constant steps): the
+        extrapolations see it, and a variable-step multistep rule's α (:meth:`with_ratio`).
+    previous : float
+        The ratio of the step before (a G-norm of the old level may be that step's).
+    """
+
+    ratio: float = attrs.field(default=1.0, kw_only=True)
+    previous: float = attrs.field(default=1.0, kw_only=True)
+
+    #: the name a case file uses (``coupler.scheme``), the plugin record's
+    name: ClassVar[str] = "time-scheme"
+    #: order of accuracy in time
+    order: ClassVar[int] = 1
+    #: True when :meth:`milne` estimates the local error (adaptive steps, ``[time] tolerance``)
+    estimates_error: ClassVar[bool] = False
+    #: True when the scheme carries stiff modes undamped, as an alternating (−1)ⁿ mode (amplification −1 as
+    #: ωΔt → ∞): the clock then drops that mode's echo from its error estimate (:func:`multilayer.coupling.clock.unechoed`)
+    undamped: ClassVar[bool] = False
+    #: what the runner adds when a run with adaptive steps breaks E ≤ E⁰ + work (empty: nothing): a scheme whose
+    #: stored energy depends on the step ratio may exceed it without instability
+    adaptive_energy_note: ClassVar[str] = ""
+
+    # -- the step's stages -----------------------------------------------------------
+    @property
+    def stages(self) -> tuple[Stage, ...]:
+        """The stages of one step, in order: one (the scheme itself) for a single-stage scheme.
+
+        >>> [(s.alpha, s.beta, s.fraction) for s in named("bdf2").stages]
+        [((1.5, -2.0, 0.5), (1.0, 0.0, 0.0), 1.0)]
+        """
+        return (Stage(self.alpha, self.beta, 1.0),)
+
+    @property
+    def parameters(self) -> dict[str, Any]:
+        """The scheme's own parameters (its fields but the step's ratios), for the run's summary."""
+        return {f.name: getattr(self, f.name) for f in attrs.fields(type(self)) if f.name not in ("ratio", "previous")}
+
+    # -- a change of step size --------------------------------------------------------
+    def with_ratio(self, ratio: float, previous: float = 1.0) -> TimeScheme:
+        """This scheme for a step ω = ``ratio`` times the one before, which was ``previous`` times its own.
+
+        A one-step rule keeps its coefficients (its identity holds step by step with that step's Δt); a
+        variable-step multistep rule overrides this (its α depends on ω).
+        """
+        return attrs.evolve(self, ratio=float(ratio), previous=float(previous))
+
+    @property
+    def max_ratio(self) -> float:
+        """The largest step ratio ω the scheme takes (zero stability): none for a one-step rule."""
+        return math.inf
+
+    @property
+    def old_levels(self) -> int:
+        """Old levels a step needs: the rule's, and two for a second-order scheme's extrapolations."""
+        return max(len(self.alpha) - 1, self.order)
+
+    # -- explicit parts: extrapolation, geometry, loads ------------------------------------
     def extrapolate(self, old: Sequence[np.ndarray]) -> np.ndarray:
         """x at tⁿ + θΔt from the old levels, to the scheme's order (xⁿ for first order).
 
@@ -199,103 +201,86 @@ class TimeScheme:
         return old[0] + self.theta * self.ratio * (old[0] - old[1])
 
     def geometry(self, etas: Sequence[np.ndarray]) -> np.ndarray:
-        """The wall displacement a fluid step is assembled on, from η^{n+1}, ηⁿ (newest first).
-
-        Backward Euler: ηⁿ, the old domain (the kinematically coupled
-        scheme's choice: with ∂_t J = (J^{n+1} − Jⁿ)/Δt it leaves no
-        geometric remainder); Crank–Nicolson: the midpoint; BDF2: η^{n+1}.
-        """
-        if self.name == "backward-euler":
-            return etas[1]
-        return self.average(etas) if self.name == "crank-nicolson" else etas[0]
+        """The wall displacement a fluid step is assembled on, from η^{n+1}, ηⁿ, ... (newest first)."""
+        raise NotImplementedError(f"time scheme {self.name!r} does not say where its geometry is (geometry)")
 
     @property
     def geometry_position(self) -> float:
-        """Where the domain of :meth:`geometry` sits in the step, as a fraction: tⁿ + position·Δt.
-
-        >>> [s.geometry_position for s in SCHEMES.values()]
-        [0.0, 0.5, 1.0]
-        """
-        return float(self.geometry([np.ones(1), np.zeros(1), np.zeros(1)])[0])
+        """Where the domain of :meth:`geometry` sits in the step, as a fraction: tⁿ + position·Δt."""
+        return float(self.geometry([np.ones(1), *[np.zeros(1)] * max(2, self.levels - 1)])[0])
 
     def load_window(self, t0: float, t1: float) -> tuple[float, float]:
-        """The time window whose average load is F̄.
-
-        [tⁿ, tⁿ⁺¹] for backward Euler (theory §6: the time average over the
-        step) and Crank–Nicolson (centred on its midpoint); for BDF2 one step
-        centred on tⁿ⁺¹, where its operator is evaluated.
-        """
+        """The time window whose average load is F̄: [tⁿ, tⁿ⁺¹] for a first-order scheme; else one step centred
+        where the operator is evaluated, tⁿ + θΔt."""
         if self.order == 1:
             return t0, t1
         centre = t0 + self.theta * (t1 - t0)
         half = 0.5 * (t1 - t0)
         return centre - half, centre + half
 
-    # -- the energy identity -------------------------------------------------------
+    # -- the energy identity -------------------------------------------------------------
     def stored(self, q: Quadratic, xs: Sequence[np.ndarray]) -> float:
-        """The energy the scheme's identity carries at the newest level of ``xs``.
-
-        BDF2: (1 − p) q(x^{n+1}) + p q(2x^{n+1} − xⁿ) with p = ω/(1 + ω) (½ for constant steps).
-        """
-        if self.name != "bdf2":
-            return q(xs[0])
-        if self.ratio == 1.0:
-            return 0.5 * (q(xs[0]) + q(2.0 * xs[0] - xs[1]))
-        p = self.ratio / (1.0 + self.ratio)
-        return (1.0 - p) * q(xs[0]) + p * q(2.0 * xs[0] - xs[1])
+        """The energy the scheme's identity carries at the newest level of ``xs`` (newest first)."""
+        raise NotImplementedError(f"time scheme {self.name!r} has no energy identity (stored)")
 
     def before(self, q: Quadratic, xs: Sequence[np.ndarray]) -> float:
         """The energy at the old level xⁿ of ``xs`` (newest first) as the step before stored it (its ratio)."""
-        if self.name != "bdf2" or self.previous == self.ratio:
+        if self.previous == self.ratio:
             return self.stored(q, xs[1:])
         return attrs.evolve(self, ratio=self.previous).stored(q, xs[1:])
 
     def numerical(self, q: Quadratic, xs: Sequence[np.ndarray]) -> float:
-        """Numerical dissipation of one step: Σα_k x^{n+1−k}·M x̄ − stored + before.
+        """Numerical dissipation of one step: Σα_k x^{n+1−k}·M x̄ − stored + before."""
+        raise NotImplementedError(f"time scheme {self.name!r} has no energy identity (numerical)")
 
-        Backward Euler: q(x^{n+1} − xⁿ).  BDF2 (docs/theory.md, "Variable-step BDF2"), with
-        u = x^{n+1} − xⁿ, w = xⁿ − x^{n−1}, b = ω²/(1 + ω), p₋ = ω₋/(1 + ω₋) (ω₋ the step before's ratio):
+    # -- the error estimate of adaptive steps ------------------------------------------------
+    def milne(self, k: Sequence[float]) -> float:
+        """e/(x^{n+1} − x^p): the local error of x^{n+1} over its distance from the clock's predictor
+        (:func:`multilayer.numerics.stepsize.predictor`) on the steps k = [kₙ, kₙ₋₁, kₙ₋₂] (Milne's device);
+        only for a scheme with :attr:`estimates_error`."""
+        raise ValueError(f"no local error estimate for {self.name!r}")
 
-            (1 − ω) q(u) + b q(u − w) + (p₋ − b)(q(2xⁿ − x^{n−1}) − q(xⁿ)),
-
-        ½q(x^{n+1} − 2xⁿ + x^{n−1}) ≥ 0 for constant steps; a growing step (ω > 1) and a change of
-        ratio (the G-norm's change, the last term) make it of either sign.
-        """
-        if self.name == "backward-euler":
-            return q(xs[0] - xs[1])
-        if self.name != "bdf2":
-            return 0.0
-        if self.ratio == 1.0 and self.previous == 1.0:
-            return 0.5 * q(xs[0] - 2.0 * xs[1] + xs[2])
-        w, u, v = self.ratio, xs[0] - xs[1], xs[1] - xs[2]
-        b, p = w * w / (1.0 + w), self.previous / (1.0 + self.previous)
-        return (1.0 - w) * q(u) + b * q(u - v) + (p - b) * (q(2.0 * xs[1] - xs[2]) - q(xs[1]))
+    def carried(self, k: Sequence[float]) -> float:
+        """How much of a step's local error stays in the run's (smooth) error: 1 for a one-step rule."""
+        return 1.0
 
 
-def bdf2_alpha(w: float) -> tuple[float, float, float]:
-    """Variable-step BDF2's α = ((1 + 2ω)/(1 + ω), −(1 + ω), ω²/(1 + ω)) for the step ratio ω (the constant
-    step's (3/2, −2, 1/2) at ω = 1, exactly).
+def scheme_param(default: str = "backward-euler") -> Param:
+    """The ``scheme`` parameter of a coupler: the name of a registered time scheme (or a table with its parameters)."""
+    return Param("scheme", type=str, default=default, plugin="scheme",
+                 doc="time discretization: a registered time scheme ('multilayer plugins' lists them), by name, "
+                     "or as a table {kind = name, ...its parameters}")
 
-    >>> bdf2_alpha(1.0), bdf2_alpha(2.0)[0]
-    ((1.5, -2.0, 0.5), 1.6666666666666667)
+
+@functools.cache
+def _installed() -> Registry:
+    """The installed plugins, loaded once, when first asked for."""
+    return Registry.load()
+
+
+def named(name: str, registry: Registry | None = None, **params: Any) -> TimeScheme:
+    """The registered time scheme ``name`` built with ``params`` (the installed plugins by default).
+
+    >>> named("crank-nicolson").order, named("bdf2").levels
+    (2, 3)
     """
-    return (1.5, -2.0, 0.5) if w == 1.0 else ((1.0 + 2.0 * w) / (1.0 + w), -(1.0 + w), w * w / (1.0 + w))
+    return (registry or _installed()).build("scheme", {"kind": name, **params})
 
 
-SCHEMES: dict[str, TimeScheme] = {
-    s.name: s
-    for s in (
-        TimeScheme("backward-euler", (1.0, -1.0), (1.0, 0.0), 1),
-        TimeScheme("crank-nicolson", (1.0, -1.0), (0.5, 0.5), 2),
-        TimeScheme("bdf2", (1.5, -2.0, 0.5), (1.0, 0.0, 0.0), 2),
-    )
-}
+def schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
+    """Every registered time scheme that takes its parameters' defaults, built, by name (the installed plugins
+    by default).
 
-
-def scheme_param(choices: Sequence[str], default: str = "backward-euler") -> Param:
-    """The ``scheme`` parameter of a coupler that offers ``choices``."""
-    return Param("scheme", type=str, default=default, choices=tuple(choices),
-                 doc="time discretization: " + ", ".join(choices))
+    >>> sorted(schemes())
+    ['backward-euler', 'bdf2', 'crank-nicolson']
+    """
+    registry = registry or _installed()
+    out = {}
+    for name in registry.names("scheme"):
+        record = registry.get("scheme", name).record
+        if not any(p.required for p in record.params):
+            out[name] = registry.build("scheme", name)
+    return out
 
 
 def levels(x: np.ndarray, history: Sequence[np.ndarray], n: int) -> list[np.ndarray]:

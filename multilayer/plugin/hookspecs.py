@@ -33,6 +33,7 @@ from multilayer.plugin.records import (
     FluidPlugin,
     GeometryPlugin,
     LayerPlugin,
+    SchemePlugin,
 )
 
 PROJECT = "multilayer"
@@ -143,4 +144,26 @@ def multilayer_boundaries() -> Iterable[BoundaryPlugin]:
         ...                            doc="p = R Q.")]
         >>> multilayer_boundaries()[0].name
         'resistance'
+    """
+
+
+@hookspec
+def multilayer_schemes() -> Iterable[SchemePlugin]:
+    """Time schemes this plugin provides: what a coupler's ``scheme`` parameter names.
+
+    The factory receives the validated parameters (the keys of a
+    ``scheme = {kind = "<name>", ...}`` table besides ``kind``) as keyword
+    arguments and returns a :class:`multilayer.numerics.timescheme.TimeScheme`:
+    its stages' weights, its energy identity, its order, its error estimate.
+
+    Example::
+
+        >>> from multilayer.plugin.records import Param, SchemePlugin
+        >>> @hookimpl
+        ... def multilayer_schemes():
+        ...     return [SchemePlugin(name="theta", factory=dict,
+        ...                          params=(Param("theta", "θ", "1", default=1.0, gt=0.0, le=1.0),),
+        ...                          doc="The θ-method.")]
+        >>> multilayer_schemes()[0].params[0].default
+        1.0
     """

@@ -90,6 +90,8 @@ def describe(param: Param) -> str:
     """
     if param.choices is not None:
         return "one of " + ", ".join(show(c) for c in param.choices)
+    if param.plugin is not None:
+        return f"the name of a {param.plugin} plugin, or a table {{kind = name, ...}}"
     noun = {float: "a number", int: "an integer", str: "a string", bool: "true or false"}.get(
         param.type, getattr(param.type, "noun", param.type.__name__)  # a type may say what it is
     )
@@ -99,7 +101,10 @@ def describe(param: Param) -> str:
 
 
 def check_value(param: Param, value: Any) -> tuple[Any, bool]:
-    """``(converted value, ok)``: ints become floats for a float parameter; bools are no numbers."""
+    """``(converted value, ok)``: ints become floats for a float parameter; bools are no numbers.  A parameter
+    that names a plugin takes a name or a table with a ``kind`` (the validator looks the plugin up)."""
+    if param.plugin is not None:
+        return value, isinstance(value, str) or (isinstance(value, Mapping) and isinstance(value.get("kind"), str))
     if param.type is float:
         ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
         value = float(value) if ok else value

@@ -32,6 +32,10 @@ class Param:
         Open/closed bounds checked by the case validator.
     choices : tuple of str, optional
         Allowed values of a string parameter.
+    plugin : str, optional
+        The kind of plugin the value names (``"scheme"``): the name of a registered plugin of that kind,
+        or a table ``{kind = name, ...its parameters}``; the validator checks it against the registry
+        and the factory receives that plugin built (:meth:`multilayer.plugin.registry.Registry.arguments`).
     doc : str
         One line: what the parameter is.
 
@@ -55,6 +59,7 @@ class Param:
     le: float | None = None
     choices: tuple[str, ...] | None = None
     doc: str = ""
+    plugin: str | None = attrs.field(default=None, kw_only=True)
 
     @property
     def required(self) -> bool:
@@ -131,6 +136,14 @@ class BoundaryPlugin(PluginRecord):
 
     kind: ClassVar[str] = "boundary"
     context: bool = attrs.field(default=False, kw_only=True)
+
+
+@attrs.frozen
+class SchemePlugin(PluginRecord):
+    """A time scheme (a :class:`multilayer.numerics.timescheme.TimeScheme`): a coupler's ``scheme`` parameter
+    names it (``[coupler] scheme = "<name>"``, or ``{kind = "<name>", ...}`` with its parameters)."""
+
+    kind: ClassVar[str] = "scheme"
 
 
 @attrs.frozen

@@ -19,8 +19,9 @@ from __future__ import annotations
 import difflib
 import importlib.metadata
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from types import ModuleType
+from typing import Any
 
 import attrs
 import pluggy
@@ -35,6 +36,7 @@ HOOKS = {
     "coupler": "multilayer_couplers",
     "geometry": "multilayer_geometries",
     "boundary": "multilayer_boundaries",
+    "scheme": "multilayer_schemes",
 }
 
 
@@ -240,6 +242,31 @@ class Registry:
             raise KeyError(msg + self.failure_note())
         return found
 
+    def build(self, kind: str, spec: str | Mapping[str, Any]) -> Any:
+        """The plugin of ``kind`` that ``spec`` names, built: a name, or a table ``{kind = name, ...its
+        parameters}`` (the parameters it leaves out take their defaults).  Checks nothing the case
+        validator checks; a name that is not registered is a KeyError (:meth:`get`).
+
+        >>> Registry.load().build("scheme", "crank-nicolson").order
+        2
+        """
+        if isinstance(spec, str):
+            name, given = spec, {}
+        else:
+            name, given = spec["kind"], {k: v for k, v in spec.items() if k != "kind"}
+        record = self.get(kind, name).record
+        params = {p.name: p.default for p in record.params if not p.required}
+        return record.factory(**{**params, **given})
+
+    def arguments(self, record: PluginRecord, params: Mapping[str, Any]) -> dict[str, Any]:
+        """``params`` as ``record``'s factory takes them: a parameter that names a plugin (:attr:`Param.plugin`,
+        e.g. a coupler's ``scheme``) is that plugin, built (:meth:`build`); an unset one stays None."""
+        out = dict(params)
+        for param in record.params:
+            if param.plugin is not None and out.get(param.name) is not None:
+                out[param.name] = self.build(param.plugin, out[param.name])
+        return out
+
     def failure_note(self) -> str:
         """``"; note: plugin entry point 'x' (...) failed to load ..."`` when one did, else ``""``.
 
@@ -266,6 +293,12 @@ def plugin_versions(case, registry: Registry) -> dict[str, dict[str, str]]:
     loads = case.resolved.get("loads") or {}
     specs += [("boundary", f"loads.{end}", loads[end]["kind"]) for end in ("inlet", "outlet")
               if isinstance(loads.get(end), dict) and "kind" in loads[end]]
+    record = registry.find("coupler", case.coupler.model)
+    for param in record.record.params if record is not None else ():  # the plugins its parameters name
+        value = case.coupler.params.get(param.name)
+        if param.plugin is not None and value is not None:
+            specs.append((param.plugin, f"{case.coupler.path}.{param.name}",
+                          value if isinstance(value, str) else value["kind"]))
     out = {}
     for kind, path, name in specs:
         reg = registry.find(kind, name)

@@ -393,8 +393,11 @@ def _iterations(per_step: list[float]) -> dict[str, dict[str, float]]:
 
 
 def _scheme(coupler: Coupler | None) -> dict[str, object]:
+    """The ``scheme`` entry of ``summary.json``: the coupler's time scheme, its order and its own parameters."""
     scheme = getattr(coupler, "scheme", None)
-    return {"name": scheme.name, "order": scheme.order} if scheme is not None else {}
+    if scheme is None:
+        return {}
+    return {"name": scheme.name, "order": scheme.order, **({"parameters": scheme.parameters} if scheme.parameters else {})}
 
 
 def _all_stats(setup: Setup) -> list:

@@ -29,7 +29,9 @@ from multilayer.wall.stack import LUMEN, Stack, WallSpace, fluid_pinned_lines
 
 
 def build_model(registry: Registry, kind: str, spec) -> Any:
-    return registry.get(kind, spec.model).record.factory(**dict(spec.params))
+    """The model of ``spec`` (a fluid, a coupler), built with its parameters (a plugin one names built too)."""
+    record = registry.get(kind, spec.model).record
+    return record.factory(**registry.arguments(record, spec.params))
 
 
 def build_geometry(registry: Registry, spec) -> Geometry:

@@ -62,7 +62,7 @@ class ChannelFluid(Fluid):
     --------
     >>> from multilayer.fluid.contract import Domain, FluidSetup
     >>> from multilayer.functions.loads import ConstantPressure
-    >>> from multilayer.numerics.timescheme import SCHEMES
+    >>> from multilayer.numerics.timescheme import named
     >>> from multilayer_plugins.planar import Planar
     >>> from multilayer_plugins.pressure import PressureEnd
     >>> fluid = NavierStokes(density=1.0, viscosity=0.035)
@@ -70,7 +70,7 @@ class ChannelFluid(Fluid):
     >>> step = fluid.setup(FluidSetup(Planar(), 1.0, 0.5, nz=2, nr=2, order=2, wall="rigid", ends=ends))
     >>> state = fluid.initial_state()
     >>> still = Domain.still(fluid.line.ndofs)
-    >>> sol, terms = fluid.step([state], still, SCHEMES["backward-euler"], 1e-3, (0.0, 1e-3))
+    >>> sol, terms = fluid.step([state], still, named("backward-euler"), 1e-3, (0.0, 1e-3))
     >>> sol.state.u.shape == (step.channel.nu,), abs(terms["a2.residual"]) < 1e-12 * terms["a2.scale"]
     (True, True)
     """
