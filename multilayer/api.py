@@ -36,7 +36,7 @@ from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.problems import CaseError, Problem
 from multilayer.plugin.registry import Registry
 from multilayer.results.files import ResultsError
-from multilayer.results.reading import lumen_eta, read_run
+from multilayer.results.reading import lumen_eta, lumen_field, lumen_wss, read_run
 from multilayer.runner.held import HeldResults
 from multilayer.runner.loop import run_case, run_held
 from multilayer.runner.stepping import RunFailed, Step, Tally, iterate_steps, setting_up
@@ -205,6 +205,10 @@ class Results:
         η(t[i], z[j]) (``eta_lumen.csv``); None without a wall.
     folder : Path or None
         The results folder, None for a run held in memory.
+    wss_lumen : (z, t, wss) or None
+        The wall shear stress τ_w (dyn/cm², positive downstream) at the
+        same vertices every step, ``wss[i, j]`` = τ_w(t[i], z[j])
+        (``wss_lumen.csv``); None without a fluid.
     """
 
     summary: dict[str, Any]
@@ -212,6 +216,7 @@ class Results:
     probes: dict[str, np.ndarray]
     eta_lumen: LumenField | None = None
     folder: Path | None = None
+    wss_lumen: LumenField | None = None
 
     @property
     def status(self) -> str:
@@ -254,6 +259,29 @@ class Results:
                 out[p["name"]] = max(0.0, float(values.max())) if values.size else 0.0
         return out
 
+    @property
+    def cycles(self) -> list[dict[str, Any]] | None:
+        """Per complete cycle of a periodic load (``summary.json`` ``cycles``; docs/readouts.md): ``index``,
+        ``start``, ``end`` (s); ``pressure`` (name → ``z``, ``systolic``, ``diastolic``, ``mean``, ``pulse`` in
+        dyn/cm², the same with ``_mmHg``); ``stroke_volume``; ``distensibility`` (``eta`` probe → ``value``,
+        ``per_mmHg``, the areas and the pressure it used); from the second cycle ``change`` (quantity → relative
+        change from the cycle before) and ``max_change``.  None when the loads do not repeat."""
+        block = self.summary.get("cycles")
+        return block.get("cycles") if isinstance(block, dict) else None
+
+    @property
+    def period(self) -> float | None:
+        """The period of the case's loads (s), None when they do not repeat."""
+        block = self.summary.get("cycles")
+        return block.get("period") if isinstance(block, dict) else None
+
+    @property
+    def wall_shear(self) -> dict[str, Any] | None:
+        """``summary.json`` ``wss``: ``z`` (cm), ``peak`` max |τ_w| per position, and with a period ``cycles``, each
+        with ``tawss`` (dyn/cm²) and ``osi`` per position and ``change`` (of TAWSS from the cycle before)."""
+        block = self.summary.get("wss")
+        return block if isinstance(block, dict) else None
+
     def __repr__(self) -> str:
         where = f", folder={str(self.folder)!r}" if self.folder is not None else ""
         end = f"{self.t[-1]:.6g}" if len(self.t) else "0"
@@ -284,7 +312,7 @@ def read_results(folder: str | os.PathLike[str]) -> Results:
     geometry = data.case.get("geometry")
     radius = geometry.get("radius") if isinstance(geometry, dict) else None
     eta = lumen_eta(folder, float(radius)) if isinstance(radius, int | float) and radius > 0 else None
-    return _results(dict(data.summary), dict(data.series), eta, folder)
+    return _results(dict(data.summary), dict(data.series), eta, folder, lumen_wss(folder))
 
 
 def _probes(summary: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -297,22 +325,17 @@ def _probes(summary: Mapping[str, Any]) -> list[dict[str, Any]]:
 
 
 def _results(summary: dict[str, Any], series: dict[str, np.ndarray], eta: LumenField | None,
-             folder: Path | None) -> Results:
+             folder: Path | None, wss: LumenField | None = None) -> Results:
     names = [p["name"] for p in _probes(summary)]
-    return Results(summary, series, {n: series[n] for n in names if n in series}, eta, folder)
+    return Results(summary, series, {n: series[n] for n in names if n in series}, eta, folder, wss)
 
 
 def _held_results(held: HeldResults) -> Results:
     """The Results of a run held in memory: the same arrays a folder would read back."""
     series = held.tables["series.csv"].arrays() if "series.csv" in held.tables else {}
-    eta = None
-    table = held.tables["eta_lumen.csv"].arrays() if "eta_lumen.csv" in held.tables else {}
-    columns = [c for c in table if c.startswith("z=")]
-    if columns and len(table["t"]):  # as lumen_eta reads eta_lumen.csv
-        z = np.array([float(c[2:]) for c in columns])
-        order = np.argsort(z, kind="stable")
-        eta = z[order], table["t"], np.column_stack([table[c] for c in columns])[:, order]
-    return _results(held.summary, series, eta, None)
+    eta, wss = (lumen_field(held.tables[name].arrays(), name) if name in held.tables else None
+                for name in ("eta_lumen.csv", "wss_lumen.csv"))  # as lumen_eta, lumen_wss read the tables
+    return _results(held.summary, series, eta, None, wss)
 
 
 # -- running ------------------------------------------------------------------------------------------------

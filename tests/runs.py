@@ -42,5 +42,5 @@ def assert_resume_is_bit_identical(tmp_path: Path, case: str, *sets: str, every:
     assert main(argv(full, end)) == 0
     assert main(argv(cut, half)) == 0
     assert main(["resume", str(cut), "--until", str(end), "--quiet", "--no-plots"]) == 0
-    for name in ("series.csv", "eta_lumen.csv"):
+    for name in ("series.csv", "eta_lumen.csv", "wss_lumen.csv"):
         assert (full / name).read_bytes() == (cut / name).read_bytes(), name

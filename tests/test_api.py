@@ -43,9 +43,11 @@ def assert_same_results(a: ml.Results, b: ml.Results) -> None:
     assert list(a.probes) == list(b.probes)
     assert a.peaks == b.peaks
     assert without_timings(a.summary) == without_timings(b.summary)
-    assert (a.eta_lumen is None) == (b.eta_lumen is None)
-    if a.eta_lumen is not None:
-        assert all(np.array_equal(x, y) for x, y in zip(a.eta_lumen, b.eta_lumen))
+    for field in ("eta_lumen", "wss_lumen"):
+        x, y = getattr(a, field), getattr(b, field)
+        assert (x is None) == (y is None), field
+        if x is not None:
+            assert all(np.array_equal(u, v) for u, v in zip(x, y)), field
 
 
 # -- the package --------------------------------------------------------------------------------------------

@@ -112,6 +112,27 @@ class Loads:
         """Every load the case prescribes as a function of t: the ends' (pressures, flow rates) and the wall's."""
         return (*self.inlet.histories(), *self.outlet.histories(), self.external, self.interface)
 
+    def period(self) -> float | None:
+        """The period T (s) with which the case's loads repeat: the longest period among the loads that repeat
+        when each of the others divides it (to 1e-9), so that every periodic load repeats after T; None when no
+        load repeats or two periods have no common cycle.  Loads that do not repeat (a constant) are left out.
+
+        >>> from multilayer.functions.loads import ConstantPressure as C, SinePressure as S
+        >>> from multilayer_plugins.pressure import PressureEnd as E
+        >>> loads = lambda *p: Loads(E(p[0]), E(p[1]), C(0.0), C(0.0))
+        >>> loads(S(1.0, 1.0), C(0.0)).period(), loads(S(1.0, 1.0), S(1.0, 3.0)).period(), loads(C(1.0), C(0.0)).period()
+        (1.0, 1.0, None)
+        >>> print(loads(S(1.0, 1.0), S(1.0, 1.5)).period())
+        None
+        """
+        periods = [p for p in (load.cycle() for load in self.histories()) if p is not None]
+        if not periods:
+            return None
+        longest = max(periods)
+        if any(abs(longest / p - round(longest / p)) > 1e-9 * longest / p for p in periods):
+            return None
+        return longest
+
 
 @attrs.frozen
 class Initial:

@@ -259,7 +259,22 @@ class Fluid(ABC):
     def pressure(self, state: Any, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
         """Pressure at physical points (of the domain moved axially by ``eta_z`` when given)."""
 
+    def wall_shear(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> np.ndarray:
+        """The wall shear stress τ_w = −t·2μD(u)n on the lumen (dyn/cm²) as a line vector: t the wall's unit
+        tangent downstream, n the fluid's outward unit normal (positive where the flow near the wall runs
+        towards z = L), on the domain of ``eta`` (moved axially by ``eta_z`` when given).
+
+        A fluid without it writes no wall shear stress (the default: :func:`gives_wall_shear` is False).
+        """
+        raise NotImplementedError(f"{type(self).__name__} gives no wall shear stress")
+
     @abstractmethod
     def snapshot(self, state: Any, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None) -> tuple:
         """(points (n, 2) in the deformed channel, triangles, point data); ``eta_z`` the lumen's d_z of an
         axially moved domain."""
+
+
+def gives_wall_shear(fluid: Fluid) -> bool:
+    """True when ``fluid``'s class gives :meth:`Fluid.wall_shear` (the default refuses; so does a class registered
+    as a Fluid without deriving from it)."""
+    return getattr(type(fluid), "wall_shear", Fluid.wall_shear) is not Fluid.wall_shear

@@ -3,7 +3,11 @@
 * ``eta_spacetime.png`` — η(z, t) on the lumen line (from ``eta_lumen.csv``);
 * ``probes.png`` — every probe against time, one panel per quantity, each axis with its unit;
 * ``energy.png`` — the energy ledger: stored energy, cumulative work and
-  dissipation, and the relative residual of every step.
+  dissipation, and the relative residual of every step;
+* ``wss.png`` — the wall shear stress τ_w(z, t) (from ``wss_lumen.csv``) and, under a periodic load, TAWSS and
+  OSI along the lumen over the last complete cycle (``summary.json`` ``wss``);
+* ``cycles.png`` — under a periodic load, every pressure over each complete cycle, overlaid (mmHg), and the
+  largest relative change of the cycle summaries from one cycle to the next (``summary.json`` ``cycles``).
 
 A figure replaces only a file the run owns (its folder's manifest lists it,
 :func:`multilayer.results.folder.may_write`); a file of that name the run did
@@ -19,10 +23,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
+from multilayer.results.cycles import MMHG, inside
 from multilayer.results.files import atomic_file
 from multilayer.results.folder import may_write
-from multilayer.results.reading import lumen_eta, read_run
+from multilayer.results.reading import lumen_eta, lumen_wss, read_run
 
 #: what each probe quantity is, and its unit (CGS)
 QUANTITIES = {
@@ -57,6 +63,14 @@ def plot_run(folder: Path | str) -> list[Path]:
     if "energy.total" in run.series and len(run.t) and may_write(folder, "energy.png"):
         plot_energy(run, folder / "energy.png")
         written.append(folder / "energy.png")
+    wss = lumen_wss(folder) if may_write(folder, "wss.png") else None
+    if wss is not None:
+        plot_wss(wss, run.summary.get("wss"), folder / "wss.png")
+        written.append(folder / "wss.png")
+    block = run.summary.get("cycles")
+    if isinstance(block, Mapping) and block.get("cycles") and len(run.t) and may_write(folder, "cycles.png"):
+        plot_cycles(run, block, folder / "cycles.png")
+        written.append(folder / "cycles.png")
     return written
 
 
@@ -153,4 +167,66 @@ def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray
     axes[0].set_ylabel("t (s)")
     if image is not None:
         fig.colorbar(image, ax=list(axes), label="η (cm)")
+    save_figure(fig, path)
+
+
+def plot_wss(field: tuple[np.ndarray, np.ndarray, np.ndarray], block: Mapping | None, path: Path) -> None:
+    """τ_w(z, t) on a symmetric colour scale; below it, with cycles in ``block`` (``summary.json`` ``wss``), TAWSS
+    and OSI along the lumen over the last complete cycle."""
+    z, t, wss = field
+    last = (block or {}).get("cycles") or []
+    fig = Figure(figsize=(8, 8 if last else 4.5), layout="constrained")
+    axes = fig.subplots(2 if last else 1, 1, squeeze=False)[:, 0]
+    peak = float(np.nanmax(np.abs(wss))) or 1.0
+    image = axes[0].imshow(wss, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-peak, vmax=peak,
+                           extent=(*_edges(z), *_edges(t)), interpolation="nearest")
+    axes[0].set_xlabel("z (cm)")
+    axes[0].set_ylabel("t (s)")
+    axes[0].set_title("wall shear stress τ_w (positive downstream)", fontsize="medium")
+    fig.colorbar(image, ax=axes[0], label="τ_w (dyn/cm²)")
+    if last:
+        cycle = last[-1]
+        ax = axes[1]
+        ax.plot(block["z"], [np.nan if v is None else v for v in cycle["tawss"]], "C0.-", label="TAWSS")
+        ax.set_xlabel("z (cm)")
+        ax.set_ylabel("TAWSS (dyn/cm²)", color="C0")
+        ax.set_title(f"over the cycle {cycle['start']:g} – {cycle['end']:g} s", fontsize="medium")
+        ax.grid(alpha=0.3)
+        osi = ax.twinx()
+        osi.plot(block["z"], [np.nan if v is None else v for v in cycle["osi"]], "C3.-", label="OSI")
+        osi.set_ylim(-0.02, 0.52)
+        osi.set_ylabel("OSI", color="C3")
+    save_figure(fig, path)
+
+
+def plot_cycles(run, block: Mapping, path: Path) -> None:
+    """Each pressure of the ``cycles`` block over each complete cycle, overlaid against the time into the cycle
+    (mmHg), and the largest relative change of the cycle summaries from the cycle before."""
+    cycles = block["cycles"]
+    names = [n for n in cycles[0].get("pressure", {}) if n in run.series]
+    changes = [(c["index"], c.get("max_change")) for c in cycles if c.get("max_change") is not None]
+    panels = len(names) + bool(changes)
+    fig = Figure(figsize=(8, 1.2 + 2.4 * max(panels, 1)), layout="constrained")
+    axes = fig.subplots(max(panels, 1), 1, squeeze=False)[:, 0]
+    t = run.t
+    for ax, name in zip(axes, names):
+        for c in cycles:
+            rows = inside(t, c["start"], c["end"], block["period"])
+            ax.plot(t[rows] - c["start"], run.series[name][rows] / MMHG, label=f"cycle {c['index'] + 1}")
+        ax.set_ylabel("p (mmHg)")
+        ax.set_title(name, fontsize="medium")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small", ncols=min(len(cycles), 4))
+    if names:
+        axes[len(names) - 1].set_xlabel("time into the cycle (s)")
+    if changes:
+        ax = axes[-1]
+        index, change = zip(*changes)
+        ax.semilogy(np.array(index) + 1, np.maximum(np.abs(change), 1e-16), "o-")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_xlabel("cycle")
+        ax.set_ylabel("max |relative change|")
+        ax.set_title("change of the cycle's pressures, stroke volume and distensibility from the cycle before",
+                     fontsize="medium")
+        ax.grid(alpha=0.3)
     save_figure(fig, path)

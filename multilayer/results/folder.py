@@ -52,10 +52,10 @@ MANIFEST = "manifest.json"
 #: what ``manifest.json`` says it is
 FORMAT = "multilayer results folder"
 #: the figures of a run (:mod:`multilayer.results.figures`)
-FIGURES = ("eta_spacetime.png", "probes.png", "energy.png")
+FIGURES = ("eta_spacetime.png", "probes.png", "energy.png", "wss.png", "cycles.png")
 #: the files of fixed names a run may write: all claimed in the manifest when it starts
-FIXED = ("summary.json", "series.csv", "eta_lumen.csv", "checkpoint.json", "checkpoint.npz",
-         "wall.pvd", "fluid.pvd", *FIGURES)
+FIXED = ("summary.json", "series.csv", "eta_lumen.csv", "wss_lumen.csv", "checkpoint.json", "checkpoint.npz",
+         "wall.pvd", "fluid.pvd", "lumen.pvd", *FIGURES)
 #: a temporary of this module: ``.<name>.<8 hex digits>.tmp``
 _TEMP = re.compile(r"\.(.+)\.[0-9a-f]{8}\.tmp")
 _SNAPSHOT = re.compile(r"(.+)_([0-9]{6})\.vtu")
@@ -189,7 +189,7 @@ class ResultsFolder:
     """
 
     #: the parts a run writes snapshots of
-    PARTS = ("wall", "fluid")
+    PARTS = ("wall", "fluid", "lumen")
     #: bytes kept on disk for summary.json from the start of a run
     RESERVE = 1 << 16
 

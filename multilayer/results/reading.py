@@ -180,6 +180,54 @@ def without_nan(value: Any) -> Any:
     return value
 
 
+def position_column(z: float) -> str:
+    """The column of a lumen table (``eta_lumen.csv``, ``wss_lumen.csv``) at the position ``z`` (cm): ``z=<z>``,
+    z rounded to 12 significant digits and written in its shortest form (no float noise of a mesh's arithmetic).
+
+    >>> position_column(0.6000000000000001), position_column(3.0), position_column(1e-05), position_column(0.1 + 0.2)
+    ('z=0.6', 'z=3.0', 'z=1e-05', 'z=0.3')
+    """
+    return f"z={float(f'{float(z):.12g}')!r}"
+
+
+def lumen_table(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """A lumen table (``eta_lumen.csv``, ``wss_lumen.csv``: ``step``, ``t``, then one ``z=<position>`` column per
+    lumen vertex) as :func:`lumen_field` of its columns; None when it is missing or has no rows.
+
+    Raises
+    ------
+    ResultsError
+        The file cannot be read as a table (:func:`read_series`), or a column is not ``z=<position>``.
+    """
+    return lumen_field(read_series(path), path)
+
+
+def lumen_field(table: Mapping[str, np.ndarray], where: Path | str = "the table"
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(z, t, values) of a lumen table's columns, ``values[i, j]`` at (t[i], z[j]), sorted by z; None without rows.
+
+    >>> z, t, v = lumen_field({"step": np.array([1.0]), "t": np.array([0.1]), "z=1.0": np.array([5.0]),
+    ...                        "z=0.5": np.array([4.0])})
+    >>> z.tolist(), t.tolist(), v.tolist()
+    ([0.5, 1.0], [0.1], [[4.0, 5.0]])
+    """
+    columns = [c for c in table if c.startswith("z=")]
+    if not (columns and len(table["t"])):
+        return None
+    try:
+        z = np.array([float(c[2:]) for c in columns])
+    except ValueError:
+        raise ResultsError(f"{where} has a column {next(c for c in columns if not _is_number(c[2:]))!r}, "
+                           f"not z=<position>: not a table of a run") from None
+    order = np.argsort(z, kind="stable")
+    return z[order], table["t"], np.column_stack([table[c] for c in columns])[:, order]
+
+
+def lumen_wss(folder: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """τ_w(z, t) on the lumen from ``wss_lumen.csv``: (z, t, wss) as :func:`lumen_table`; None without it."""
+    return lumen_table(folder / "wss_lumen.csv")
+
+
 def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """η(z, t) on the lumen line: from ``eta_lumen.csv`` (every step), else the ``<part>_*.vtu`` snapshots.
 
@@ -188,18 +236,8 @@ def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarr
     z.  None when the run wrote neither.
     """
     table = folder / "eta_lumen.csv"
-    if table.is_file():
-        series = read_series(table)
-        columns = [c for c in series if c.startswith("z=")]
-        if columns and len(series["t"]):
-            try:
-                z = np.array([float(c[2:]) for c in columns])
-            except ValueError:
-                raise ResultsError(f"{table} has a column {next(c for c in columns if not _is_number(c[2:]))!r}, "
-                                   f"not z=<position>: not a table of a run") from None
-            order = np.argsort(z, kind="stable")
-            eta = np.column_stack([series[c] for c in columns])[:, order]
-            return z[order], series["t"], eta
+    if table.is_file() and (field := lumen_table(table)) is not None:
+        return field
     pvd = folder / f"{part}.pvd"
     if not pvd.is_file():
         return None

@@ -47,7 +47,7 @@ from multilayer.case.model import Case
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.files import atomic_file
-from multilayer.results.folder import run_identity, snapshot_of
+from multilayer.results.folder import ResultsFolder, run_identity, snapshot_of
 from multilayer.runner.volume import VolumeLedger
 from multilayer.scene.state import State, WallState
 from multilayer.version import __version__
@@ -253,8 +253,8 @@ def _snapshots_from_data(data: Any) -> dict[str, list[tuple[float, str]]]:
         raise ValueError("the snapshots should map collections to their entries")
     out = {}
     for name, entries in data.items():
-        if name not in ("wall", "fluid") or not isinstance(entries, list):
-            raise ValueError(f"the snapshots have a collection {name!r}, not wall or fluid")
+        if name not in ResultsFolder.PARTS or not isinstance(entries, list):
+            raise ValueError(f"the snapshots have a collection {name!r}, not {' or '.join(ResultsFolder.PARTS)}")
         for entry in entries:
             if not (isinstance(entry, list) and len(entry) == 2 and isinstance(entry[0], float)
                     and (snapshot := snapshot_of(entry[1])) and snapshot[0] == name):

@@ -8,7 +8,9 @@ The results folder is a contract other tools rely on:
   relative residual, sub-iterations when the coupler reports them;
 * ``series.csv`` — one row per step: ``t``, every ledger term, every probe;
 * ``eta_lumen.csv`` — η on the lumen line at every vertex, every step (when there is a wall);
-* ``<part>_NNNNNN.vtu`` + ``<part>.pvd`` — field snapshots for ParaView;
+* ``wss_lumen.csv`` — the wall shear stress τ_w at the same vertices, every step (when there is a fluid);
+* ``<part>_NNNNNN.vtu`` + ``<part>.pvd`` — field snapshots for ParaView (``wall``, ``fluid``, and ``lumen``:
+  the lumen with τ_w);
 * ``checkpoint.json`` + ``checkpoint.npz`` — the whole state every ``checkpoint_every`` steps, as data
   (:mod:`multilayer.runner.checkpoint`), for :func:`resume_run`.
 
@@ -20,13 +22,14 @@ every row and snapshot written so far.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
 import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import attrs
@@ -38,9 +41,12 @@ from multilayer.coupling.build import prepare
 from multilayer.coupling.contract import Coupler, SchemeFailure
 from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.registry import Registry, plugin_versions
+from multilayer.results.files import open_nofollow
 from multilayer.results.folder import ResultsError, ResultsFolder
+from multilayer.results.reading import position_column
 from multilayer.runner import checkpoint
 from multilayer.runner.held import HeldResults
+from multilayer.runner.readouts import readouts
 from multilayer.runner.stepping import (
     EnergyBound,
     RunFailed,
@@ -65,6 +71,9 @@ def _snapshot(setup: Setup, state: State, results: ResultsFolder | HeldResults) 
     if setup.fluid is not None:
         pts, cells, data = setup.fluid_snapshot(state)
         results.snapshot("fluid", pts, cells, data, state.t, state.n)
+    if setup.gives_wall_shear:
+        pts, cells, data = setup.lumen_snapshot(state)
+        results.snapshot("lumen", pts, cells, data, state.t, state.n)
 
 
 @attrs.frozen
@@ -325,6 +334,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     }
     signals.finishing = True
     try:
+        summary.update(_readouts(case, setup, results))
         results.write_summary(summary)
     finally:
         results.release()
@@ -333,7 +343,8 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
 
 
 class Writers:
-    """The per-step files: ``series.csv``, with a wall ``eta_lumen.csv`` (η at the lumen's vertices), snapshots.
+    """The per-step files: ``series.csv``; with a wall ``eta_lumen.csv`` (η at the lumen's vertices), with a fluid
+    ``wss_lumen.csv`` (τ_w at the same vertices); snapshots.
 
     ``series.csv`` gets its header before the first step, from the columns
     known then (the stored energy's terms, the probes); the first row
@@ -350,29 +361,38 @@ class Writers:
             results.keep_until(self.keep, saved.snapshots)
         self.series = results.series(columns) if saved is None else None
         self._provisional = saved is None
-        self.eta = None
+        #: the lumen tables: (writer, the line vertices it samples, the line vector of a state it writes)
+        self.lumen: list[tuple] = []
         if setup.wall is not None:
-            line = setup.wall.lines[0]
-            self._vertices = line.basis.nodal_dofs[0]
-            z = line.z[self._vertices]
-            self.eta = results.series(["step", "t", *(f"z={v!r}" for v in map(float, z))], "eta_lumen.csv",
-                                      self.keep)
+            self.lumen.append(self._lumen_table("eta_lumen.csv", setup.wall.lines[0], lambda s: setup.eta(s, 0)))
+        if setup.gives_wall_shear:
+            self.lumen.append(self._lumen_table("wss_lumen.csv", setup.fluid.line, setup.wall_shear))
+
+    def _lumen_table(self, name: str, line, values) -> tuple:
+        vertices = line.basis.nodal_dofs[0]
+        columns = ["step", "t", *(position_column(z) for z in line.z[vertices])]
+        if self.keep is not None and self.results.path is not None:
+            columns = _as_written(self.results.path / name, columns)
+        return self.results.series(columns, name, self.keep), vertices, values
 
     def row(self, step: Step) -> None:
-        """The step's rows of ``series.csv`` and ``eta_lumen.csv``: both written, or neither."""
+        """The step's rows of ``series.csv`` and the lumen tables: all written, or none."""
         row, state = step.row, step.state
         with self.signals.writing():
             if self.series is None or (self._provisional and list(row) != self.series.columns):
                 self.series = self.results.series(list(row), keep_until=self.keep)
             self._provisional = False
             self.series.append(row)
-            if self.eta is not None:
-                eta = self.setup.eta(state, 0)[self._vertices]
-                try:
-                    self.eta.append({"step": state.n, "t": state.t, **dict(zip(self.eta.columns[2:], eta))})
-                except BaseException:
-                    self.series.undo()
-                    raise
+            written = [self.series]
+            try:
+                for table, vertices, values in self.lumen:
+                    table.append({"step": state.n, "t": state.t,
+                                  **dict(zip(table.columns[2:], values(state)[vertices]))})
+                    written.append(table)
+            except BaseException:
+                for table in written:
+                    table.undo()
+                raise
 
     def fields(self, step: Step) -> None:
         """The snapshots, every ``[output] every`` steps; with adaptive steps at every step that landed on an
@@ -382,6 +402,28 @@ class Writers:
         if step.diagnostics.get("landed", 0.0) if self.setup.case.time.adaptive else step.n % self.every == 0:
             with self.signals.writing():
                 _snapshot(self.setup, step.state, self.results)
+
+
+def _as_written(path: Path, columns: list[str]) -> list[str]:
+    """The header of the lumen table ``path`` a resumed run appends to, when it names the positions of ``columns``
+    unrounded (a table begun before positions were written short: ``z=0.6000000000000001``); else ``columns``."""
+    with suppress(OSError, ResultsError, ValueError):
+        with open_nofollow(path, os.O_RDONLY, "r") as f:
+            header = f.readline().rstrip("\r\n").split(",")
+        if len(header) == len(columns) and header[:2] == columns[:2] and all(
+                position_column(float(a[2:])) == b for a, b in zip(header[2:], columns[2:])):
+            return header
+    return columns
+
+
+def _readouts(case: Case, setup: Setup | None, results: ResultsFolder | HeldResults) -> dict:
+    """The summary's ``cycles`` and ``wss`` blocks (:mod:`multilayer.runner.readouts`); an error in them is
+    reported in the summary (``readouts_error``, the traceback on stderr), never at the cost of the summary."""
+    try:
+        return readouts(case, setup, results)
+    except Exception as exc:
+        print(traceback.format_exc(), file=sys.stderr)
+        return {"readouts_error": f"{type(exc).__name__}: {exc}"}
 
 
 def _iterations(per_step: list[float]) -> dict[str, dict[str, float]]:

@@ -17,7 +17,7 @@ import attrs
 import numpy as np
 
 from multilayer.case.model import Case, Probe
-from multilayer.fluid.contract import ENDS, Fluid, FluidSetup
+from multilayer.fluid.contract import ENDS, Fluid, FluidSetup, gives_wall_shear
 from multilayer.geometry.contract import Geometry
 from multilayer.numerics.linsolve import SolverStats
 from multilayer.plugin.registry import Registry
@@ -210,7 +210,30 @@ class Setup:
             out[name] = float((ev @ vec)[0])
         return out
 
+    # -- the wall shear stress ---------------------------------------------------
+    @property
+    def gives_wall_shear(self) -> bool:
+        """Whether the run has a fluid that gives its wall shear stress (``wss_lumen.csv``, ``lumen`` snapshots)."""
+        return self.fluid is not None and gives_wall_shear(self.fluid)
+
+    def wall_shear(self, state: State) -> np.ndarray:
+        """τ_w on the lumen (dyn/cm²), a line vector of the fluid's line (:meth:`Fluid.wall_shear`)."""
+        return self.fluid.wall_shear(state.fluid, state.eta, state.extra.get("eta_z"))
+
     # -- snapshots ------------------------------------------------------------
+    def lumen_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
+        """The lumen Γ in its physical place, a line of the fluid's line vertices, with ``wss`` (τ_w, dyn/cm²).
+
+        In ParaView the line lies on the fluid snapshot's wall: *Plot Data* draws τ_w along it.
+        """
+        line = self.fluid.line
+        mesh, vertices = line.basis.mesh, line.basis.nodal_dofs[0]
+        eta = np.zeros(line.ndofs) if state.eta is None else state.eta
+        eta_z = state.extra.get("eta_z")
+        z = mesh.p[0] + (0.0 if eta_z is None else eta_z[vertices])
+        pts = np.column_stack([z, line.radius + eta[vertices], np.zeros(len(vertices))])
+        return pts, {"line": mesh.t.T}, self._measured(pts, {"wss": self.wall_shear(state)[vertices]})
+
     def wall_snapshot(self, state: State) -> tuple[np.ndarray, dict, dict]:
         """Points, cells and point data of the wall at its reference position.
 

@@ -17,6 +17,7 @@ module              what it holds
 ``step``            one step: system, solve, energy identity (:class:`FluidStep`)
 ``ledger``          quadratures of the energy identity
 ``probes``          point values, flow rate, snapshots
+``wall_shear``      the wall shear stress τ_w on the lumen
 ``model``           :class:`NavierStokes`, :class:`Stokes` (plugins' factories)
 ==================  ====================================================
 """

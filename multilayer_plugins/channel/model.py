@@ -25,6 +25,7 @@ from multilayer_plugins.channel.end_convection import END_PRESSURES
 from multilayer_plugins.channel.ledger import fluid_kinetic
 from multilayer_plugins.channel.stabilization import GRAD_DIV, KINDS, Stabilization
 from multilayer_plugins.channel.step import FluidState, FluidStep, FluidSystem, Solution
+from multilayer_plugins.channel.wall_shear import WallShear
 
 #: The parameters of every channel fluid, for its plugin record.
 PARAMS = (
@@ -87,6 +88,7 @@ class ChannelFluid(Fluid):
         #: the backflow term's β of static-pressure ends; None: total-pressure ends (theory §10)
         self.backflow: float | None = None
         self._discrete: FluidStep | None = None
+        self._shear: WallShear | None = None  # built at the first wall_shear of a discretization
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r})"
@@ -104,6 +106,7 @@ class ChannelFluid(Fluid):
         self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
                                    spec.reuse, spec.ends, self.backflow, spec.interface_block, spec.held,
                                    self.stabilization(channel))
+        self._shear = None
         return self._discrete
 
     def stabilization(self, channel: Channel) -> Stabilization | None:
@@ -260,6 +263,14 @@ class ChannelFluid(Fluid):
     def pressure(self, state: FluidState, eta: np.ndarray | None, z, r, eta_z: np.ndarray | None = None) -> np.ndarray:
         """Pressure at physical points (dyn/cm²); the domain moved axially by ``eta_z`` when given."""
         return probes.pressure(self.channel, state.p, self._eta(eta), z, r, self._axial(eta_z))
+
+    def wall_shear(self, state: FluidState, eta: np.ndarray | None = None,
+                   eta_z: np.ndarray | None = None) -> np.ndarray:
+        """τ_w = −t·2μD(u)n on the lumen at the line's DOFs (dyn/cm²), the domain moved axially by ``eta_z`` when
+        given; see :mod:`multilayer_plugins.channel.wall_shear`."""
+        if self._shear is None:
+            self._shear = WallShear(self.channel, self.viscosity)
+        return self._shear(state.u, self._eta(eta), self._axial(eta_z))
 
     def snapshot(self, state: FluidState, eta: np.ndarray | None = None, eta_z: np.ndarray | None = None):
         """(points, triangles, point_data) in the deformed geometry, moved axially by the harmonic extension of

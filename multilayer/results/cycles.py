@@ -1,0 +1,186 @@
+"""What a run under a periodic load gives per cardiac cycle, from its series alone (pure numpy).
+
+A run's rows are at the ends of its steps t₁ < t₂ < …, the steps starting
+at t₀ = ``start`` (0 for every run); row i stands for the step (tᵢ₋₁, tᵢ].
+Cycle k is [kT, (k + 1)T]; it is *complete* when the steps cover it.  Over
+a cycle [a, b] a series v has
+
+* the time integral ∫ v dt = Σᵢ vᵢ |(tᵢ₋₁, tᵢ] ∩ [a, b]| (the step's mean
+  times the part of the step in the cycle: exact for the columns that are
+  step means, ``end.<end>.p``, ``end.<end>.Q``, and, for samples of a
+  periodic signal at steps that tile the cycle, the trapezoidal rule);
+* its maximum and minimum over the rows with a < tᵢ ≤ b.
+
+From them, per complete cycle (:func:`summarize`): each pressure's systolic
+(max), diastolic (min), mean ((1/T)∫p dt) and pulse (max − min) pressure,
+in dyn/cm² and mmHg; the stroke volume ∫ Q_in dt (the inflow through the
+inlet); at each lumen position the distensibility
+(A_max − A_min)/(A_min · pulse pressure), A the lumen's section there and the
+pulse pressure that of the pressure nearest in z; and each quantity's
+relative change from the cycle before, which goes to zero as the run
+becomes periodic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from multilayer.results.reading import without_nan
+
+#: dyn/cm² in one mmHg (133.322387415 Pa)
+MMHG = 1333.22387415
+
+
+def windows(t: np.ndarray, period: float, start: float = 0.0) -> list[tuple[int, float, float]]:
+    """The complete cycles (k, kT, (k + 1)T) the steps from ``start`` to the rows' times ``t`` cover.
+
+    A cycle's ends are matched to the rows' times to 1e-9 T (steps of a
+    decimal Δt do not add up to kT exactly).
+
+    >>> windows(np.arange(1, 26) * 0.1, 1.0)
+    [(0, 0.0, 1.0), (1, 1.0, 2.0)]
+    >>> windows(np.arange(11, 31) * 0.1, 1.0, start=1.0)
+    [(1, 1.0, 2.0), (2, 2.0, 3.0)]
+    """
+    if not (len(t) and period > 0.0 and math.isfinite(period)):
+        return []
+    tol = 1e-9 * period
+    first = math.ceil((start - tol) / period)
+    last = math.floor((float(t[-1]) + tol) / period)  # cycles end at or before the last row
+    return [(k, k * period, (k + 1) * period) for k in range(max(first, 0), last)]
+
+
+def _overlap(t: np.ndarray, a: float, b: float, start: float) -> np.ndarray:
+    """|(tᵢ₋₁, tᵢ] ∩ [a, b]| for every row."""
+    before = np.concatenate([[start], t[:-1]])
+    return np.clip(np.minimum(t, b) - np.maximum(before, a), 0.0, None)
+
+
+def integral(t: np.ndarray, values: np.ndarray, a: float, b: float, start: float = 0.0) -> np.ndarray:
+    """∫ v dt over [a, b]: Σᵢ vᵢ |(tᵢ₋₁, tᵢ] ∩ [a, b]|; ``values`` (rows, ...) gives one integral per column.
+
+    >>> t = np.arange(1, 5) * 0.25
+    >>> float(integral(t, np.array([1.0, 2.0, 3.0, 4.0]), 0.0, 0.5)), float(integral(t, np.ones(4), 0.1, 0.6))
+    (0.75, 0.5)
+    """
+    return np.tensordot(_overlap(t, a, b, start), values, axes=(0, 0))
+
+
+def inside(t: np.ndarray, a: float, b: float, period: float) -> np.ndarray:
+    """The rows with a < tᵢ ≤ b (to 1e-9 T)."""
+    tol = 1e-9 * period
+    return (t > a + tol) & (t <= b + tol)
+
+
+def pressure_stats(t: np.ndarray, p: np.ndarray, a: float, b: float, start: float = 0.0) -> dict[str, float]:
+    """Systolic, diastolic, mean and pulse pressure over the cycle [a, b], in dyn/cm² and mmHg (``_mmHg``).
+
+    >>> t = np.arange(1, 101) * 0.01
+    >>> s = pressure_stats(t, 1e5 + 2e4 * np.sin(2 * np.pi * t), 0.0, 1.0)
+    >>> round(s["systolic"], 6), round(s["diastolic"], 6), round(s["mean"], 6), round(s["pulse_mmHg"], 4)
+    (120000.0, 80000.0, 100000.0, 30.0025)
+    """
+    rows = inside(t, a, b, b - a)
+    stats = {"systolic": float(np.max(p[rows])), "diastolic": float(np.min(p[rows])),
+             "mean": float(integral(t, p, a, b, start)) / (b - a)}
+    stats["pulse"] = stats["systolic"] - stats["diastolic"]
+    return {**stats, **{f"{k}_mmHg": v / MMHG for k, v in stats.items()}}
+
+
+def nearest(z: float, places: Mapping[str, float]) -> str | None:
+    """The name of the place nearest to ``z`` (the first of equals); None when there is none.
+
+    >>> nearest(1.0, {"p_in": 0.0, "p_mid": 3.0}), nearest(2.0, {})
+    ('p_in', None)
+    """
+    return min(places, key=lambda name: abs(places[name] - z), default=None)
+
+
+def summarize(t: np.ndarray, period: float, pressures: Mapping[str, tuple[float, np.ndarray]],
+              inflow: np.ndarray | None = None, areas: Mapping[str, tuple[float, np.ndarray]] | None = None,
+              start: float = 0.0) -> list[dict]:
+    """The summary of every complete cycle of the series, in order.
+
+    Parameters
+    ----------
+    t : array
+        The rows' times (s), increasing; the steps start at ``start``.
+    period : float
+        T (s).
+    pressures : mapping
+        name → (z, p per row): each pressure (dyn/cm²) and where along the vessel it is (cm).
+    inflow : array, optional
+        The flow rate into the vessel through its inlet, per row (cm³/s, or cm²/s per unit depth).
+    areas : mapping, optional
+        name → (z, A per row): the lumen's section at a position (cm², or cm per unit depth).
+
+    Returns
+    -------
+    list of dict
+        Per cycle ``index``, ``start``, ``end``; ``pressure`` (name → :func:`pressure_stats` and ``z``);
+        ``stroke_volume`` (∫ inflow dt) with an inflow; ``distensibility`` (name → ``z``, ``area_max``,
+        ``area_min``, ``pressure`` (the nearest pressure's name), ``pulse_pressure``, ``value`` in cm²/dyn
+        and ``per_mmHg``); from the second cycle on ``change`` (quantity → relative change from the cycle
+        before) and ``max_change`` (the largest in size).  A value that cannot be formed is None.
+    """
+    t = np.asarray(t, dtype=float)
+    areas = areas or {}
+    out: list[dict] = []
+    scales: dict[str, float] = {}
+    previous: dict[str, float] = {}
+    for k, a, b in windows(t, period, start):
+        cycle: dict = {"index": k, "start": a, "end": b, "pressure": {}}
+        values: dict[str, float] = {}
+        now_scales: dict[str, float] = {}
+        for name, (z, p) in pressures.items():
+            stats = pressure_stats(t, np.asarray(p, dtype=float), a, b, start)
+            cycle["pressure"][name] = {"z": z, **stats}
+            for key in ("systolic", "diastolic", "mean", "pulse"):
+                values[f"pressure.{name}.{key}"] = stats[key]
+                # a pressure that swings about zero is measured against its swing
+                now_scales[f"pressure.{name}.{key}"] = max(abs(stats[key]), abs(stats["pulse"]))
+        if inflow is not None:
+            q = np.asarray(inflow, dtype=float)
+            cycle["stroke_volume"] = float(integral(t, q, a, b, start))
+            values["stroke_volume"] = cycle["stroke_volume"]
+            # the volume moved either way: the scale of a net volume near zero (a flow that reverses)
+            now_scales["stroke_volume"] = float(integral(t, np.abs(q), a, b, start))
+        places = {name: z for name, (z, _) in pressures.items()}
+        if areas:
+            cycle["distensibility"] = {}
+        for name, (z, area) in areas.items():
+            rows = inside(t, a, b, period)
+            area = np.asarray(area, dtype=float)[rows]
+            high, low = float(np.max(area)), float(np.min(area))
+            source = nearest(z, places)
+            pulse = cycle["pressure"][source]["pulse"] if source is not None else math.nan
+            value = (high - low) / (low * pulse) if pulse > 0.0 and low > 0.0 else math.nan
+            cycle["distensibility"][name] = {"z": z, "area_max": high, "area_min": low, "pressure": source,
+                                             "pulse_pressure": pulse, "value": value, "per_mmHg": value * MMHG}
+            values[f"distensibility.{name}"] = value
+            now_scales[f"distensibility.{name}"] = abs(value)
+        if out:
+            cycle["change"] = {key: _relative(v, previous.get(key, math.nan), scales.get(key, math.nan))
+                               for key, v in values.items()}
+            finite = [abs(c) for c in cycle["change"].values() if math.isfinite(c)]
+            cycle["max_change"] = max(finite) if finite else math.nan
+        previous, scales = values, now_scales
+        out.append(without_nan(cycle))
+    return out
+
+
+def _relative(now: float, before: float, scale: float) -> float:
+    """(now − before)/scale; 0 when both are 0, NaN when it cannot be formed.
+
+    >>> _relative(1.1, 1.0, 1.0), _relative(0.0, 0.0, 0.0), _relative(1.0, 0.0, 0.0)
+    (0.10000000000000009, 0.0, nan)
+    """
+    if not (math.isfinite(now) and math.isfinite(before) and math.isfinite(scale)):
+        return math.nan
+    if now == before:
+        return 0.0
+    return (now - before) / scale if scale > 0.0 else math.nan
+
