@@ -161,8 +161,9 @@ def test_a_run_writes_the_wall_shear_stress_every_step_and_in_its_snapshots(tmp_
 
 def test_a_run_resumed_into_tables_with_unrounded_headers_keeps_them(tmp_path):
     """A lumen table begun by a multilayer that wrote z=0.6000000000000001 is resumed as it was written."""
-    from multilayer.commands.main import main
     from runs import CASES
+
+    from multilayer.commands.main import main
 
     sets = ["--set", "mesh.nz=12", "--set", "mesh.nr=3"]
     out = tmp_path / "run"
