@@ -145,31 +145,39 @@ def markdown(data: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def plot_compared_probes(runs: Sequence[Any], path: Path) -> None:
-    """One panel per probe (every probe of any run), all runs overlaid against t.
+def plot_compared_probes(runs: Sequence[Any], path: Path) -> Any:
+    """One panel per probe (every probe of any run), all runs overlaid against t, each in the unit a person
+    reads (:func:`multilayer.results.figures.display`); returns the figure.
 
     (:func:`multilayer.results.figures.plot_probes` draws the probes of one run.)
     """
     # matplotlib is heavy (and results.figures loads it): imported only when the figure is drawn
     from matplotlib.figure import Figure
 
-    from multilayer.results.figures import save_figure
+    from multilayer.results.figures import fit, label_axis, save_figure, slide_style
 
     probes: dict[str, Mapping[str, Any]] = {}
+    units: dict[str, str] = {}
     for run in runs:
+        units = units or dict((run.summary or {}).get("units") or {})
         for p in run.probes:
             probes.setdefault(p["name"], p)
-    fig = Figure(figsize=(8, 1.0 + 2.2 * max(1, len(probes))), layout="constrained")
-    axes = fig.subplots(max(1, len(probes)), 1, sharex=True, squeeze=False)[:, 0]
-    if not probes:
-        axes[0].text(0.5, 0.5, "no probes", ha="center", va="center", transform=axes[0].transAxes)
-    for ax, (name, p) in zip(axes, probes.items()):
-        for run in runs:
-            if name in run.series:
-                ax.plot(run.t, run.series[name], label=run.label)
-        where = _where(p) + (f", r = {p['r']:g}" if p.get("r") is not None else "")
-        ax.set_title(f"{name}: {p['quantity']} at {where}", fontsize="medium")
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize="small")
-    axes[-1].set_xlabel("t (s)")
-    save_figure(fig, path)
+    with slide_style():
+        fig = Figure(figsize=(9, 1.4 + 2.6 * max(1, len(probes))), layout="constrained")
+        axes = fig.subplots(max(1, len(probes)), 1, sharex=True, squeeze=False)[:, 0]
+        if not probes:
+            axes[0].text(0.5, 0.5, "no probes", ha="center", va="center", transform=axes[0].transAxes)
+            axes[0].set_ylabel("no probes (–)")
+        for ax, (name, p) in zip(axes, probes.items()):
+            factor = label_axis(ax, p["quantity"], units)
+            for run in runs:
+                if name in run.series:
+                    ax.plot(run.t, factor * run.series[name], label=run.label)
+            where = (f"z = {p['z']:g} cm" + (f", r = {p['r']:g} cm" if p.get("r") is not None else "")
+                     + (f", line {p['line']}" if p.get("line") else ""))
+            ax.set_title(fit(f"{name}: {p['quantity']} at {where}", 7.0))
+            ax.grid(alpha=0.3)
+        axes[0].legend()
+        axes[-1].set_xlabel("t (s)")
+        save_figure(fig, path)
+    return fig

@@ -288,5 +288,9 @@ def write_plan(runs: Sequence[SweepRun], keys: Sequence[str], out: Path, case_fi
 def write_report(out: Path, rows: Sequence[Mapping[str, Any]], keys: Sequence[str], command: str) -> None:
     """``sweep.csv``, one ``sweep_<key>.png`` per swept key and ``sweep.md`` of the :func:`collect` rows in ``out``."""
     write_csv(rows, claim(out, "sweep.csv"))
-    figures = plot(rows, keys, out)
+    # matplotlib is heavy (results.figures loads it): imported only when the figures are drawn
+    from multilayer.results.figures import slide_style
+
+    with slide_style():
+        figures = plot(rows, keys, out)
     write_atomically(claim(out, "sweep.md"), markdown(rows, keys, command, figures))
