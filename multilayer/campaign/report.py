@@ -80,7 +80,7 @@ def rows(data: Mapping[str, Any]) -> list[tuple[str, list[str]]]:
             unfinished = [c["probes"].get(name, {}).get("peaked") is False and c["probes"][name][key] is not None
                           for c in columns]
             out.append((title, [f"{v} (last row)" if u else v for v, u in zip(cells, unfinished)]))
-    for name, entry in etas + _probe_names(columns, "p"):
+    for name, entry in [(n, e) for n, e in etas if not e.get("line")] + _probe_names(columns, "p"):
         out.append((f"foot time at `{name}` (s)", [_foot(c["probes"].get(name)) for c in columns]))
     places = {(loop["z"], loop["pressure"], loop["eta"]) for c in columns for loop in c.get("pwv_loop", [])}
     out += [
