@@ -105,7 +105,10 @@ def arrival_speed(lumen: Mapping[str, Mapping[str, Any]], key: str) -> Speed:
         why = ("no pulse" if e["peak"] is None else "its peak is on the last row" if not e["peaked"]
                else "not arrived: its peak is under 1 % of the largest" if e["peak"] < ARRIVED * largest
                else "its first row already holds half its peak" if e["displaced"] else "")
-        (left.append(f"{name}: {why}") if why else used.append(e))
+        if why:
+            left.append(f"{name}: {why}")
+        else:
+            used.append(e)
     times = {e[key] for e in used}
     if len(used) < 2:
         return Speed(None, "fewer than two arrivals" + (f" ({'; '.join(left)})" if left else ""))
