@@ -186,6 +186,10 @@ def _toml_string(text: str) -> str:
 class Results:
     """A run's results as arrays: what its results folder holds, or what a run in memory kept.
 
+    Every number is CGS (cm, s, g, dyn/cm²; a tube's flow rates in cm³/s), as the run wrote it: η and
+    ``peaks`` in cm (the command line prints µm), pressures in dyn/cm² (the figures show mmHg; 1 mmHg =
+    :data:`multilayer.plugin.units.MMHG` dyn/cm²).
+
     Attributes
     ----------
     summary : dict
@@ -250,7 +254,10 @@ class Results:
 
     @property
     def peaks(self) -> dict[str, float]:
-        """max |η| of every ``eta`` probe (cm), the peaks ``multilayer run`` prints (in µm)."""
+        """max |η| of every ``eta`` probe, in cm like every number of the API (CGS).
+
+        ``multilayer run`` prints the same peaks in µm: ``1e4 * res.peaks[name]``.
+        """
         out = {}
         for p in _probes(self.summary):
             if p.get("quantity") == "eta" and p["name"] in self.series:

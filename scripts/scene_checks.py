@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from multilayer.plugin.units import MMHG
 from multilayer.results.reading import read_run
 
-MMHG = 1333.22  # dyn/cm² per mmHg
 FLOWING = 5.0  # cm/s: the mean velocity above which the centreline ratio is read
 
 

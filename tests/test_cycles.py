@@ -15,8 +15,8 @@ from runs import CASES, run_case_file
 
 from multilayer import read_results
 from multilayer.case.casefile import load_case
+from multilayer.plugin.units import MMHG
 from multilayer.results import cycles, shear
-from multilayer.results.cycles import MMHG
 from multilayer.results.figures import plot_run
 from multilayer.results.reading import position_column
 

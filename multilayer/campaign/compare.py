@@ -62,6 +62,6 @@ def write_report(out: Path, variants: Sequence[Variant], runs: Sequence[RunData]
     report.plot_compared_probes(runs, claim(out, "probes.png"))
     radius = (first.get("geometry") or {}).get("radius")
     fields = {run.label: lumen_eta(run.folder, radius) for run in runs} if radius else {}
-    plot_spacetime(fields, claim(out, "eta_spacetime.png"))
+    plot_spacetime(fields, claim(out, "eta_spacetime.png"), title=first.get("title") or None)
     write_atomically(claim(out, "report.md"), report.markdown(data))
     return data

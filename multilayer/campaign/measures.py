@@ -1,14 +1,26 @@
-"""What compare, study and sweep measure of runs, from their results folders alone."""
+"""What compare, study and sweep measure of runs, from their results folders alone.
+
+The pulse-wave velocities (foot to foot, the ΔP–ΔA loop) and the stack's long-wave speed are
+:mod:`multilayer.campaign.pulse_wave`'s; every speed comes with the reason when there is none.
+"""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from multilayer.campaign.pulse_wave import (
+    ARRIVED,
+    Speed,
+    foot_to_foot,
+    loop_speed,
+    radial_power,
+    stack_long_wave_speed,
+)
 from multilayer.plugin.registry import Registry
+from multilayer.plugin.units import MMHG
 from multilayer.results.reading import RunData, dof_counts, finite_rows
 
 
@@ -38,26 +50,24 @@ def max_abs_difference(t_a: np.ndarray, y_a: np.ndarray, t_b: np.ndarray, y_b: n
 def arrival(t: np.ndarray, y: np.ndarray) -> dict[str, Any]:
     """The pulse at a probe: ``peak`` max |y|, ``peak_time`` its (first) time,
     ``half_peak_time`` the first time |y| reaches half the peak (linear between
-    rows), and ``peaked``: False when the peak is on the last row — the pulse
-    may still be rising there, so neither time is an arrival yet.
+    rows), ``peaked``: False when the peak is on the last row — the pulse
+    may still be rising there, so neither time is an arrival yet — and
+    ``displaced``: True when the first row already holds half the peak (a wall
+    started deflected, ``initial.pressure``): then neither time is an arrival.
 
     >>> arrival(np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.0, 1.0, 4.0, -2.0]))
-    {'peak': 4.0, 'peak_time': 3.0, 'half_peak_time': 2.3333333333333335, 'peaked': True}
+    {'peak': 4.0, 'peak_time': 3.0, 'half_peak_time': 2.3333333333333335, 'peaked': True, 'displaced': False}
     """
     t, y = finite_rows(t, y)
     a = np.abs(y)
     if not len(a) or a.max() == 0.0:
-        return {"peak": None, "peak_time": None, "half_peak_time": None, "peaked": False}
+        return {"peak": None, "peak_time": None, "half_peak_time": None, "peaked": False, "displaced": False}
     i_peak = int(np.argmax(a))
     half = 0.5 * a[i_peak]
     i = int(np.argmax(a >= half))
     t_half = t[i] if i == 0 else t[i - 1] + (half - a[i - 1]) / (a[i] - a[i - 1]) * (t[i] - t[i - 1])
     return {"peak": float(a[i_peak]), "peak_time": float(t[i_peak]), "half_peak_time": float(t_half),
-            "peaked": i_peak < len(a) - 1}
-
-
-#: an η probe's peak counts as the pulse's arrival when it is at least this fraction of the largest η probe's peak
-ARRIVED = 0.01
+            "peaked": i_peak < len(a) - 1, "displaced": bool(i == 0)}
 
 
 def wave_speed(z: Sequence[float], times: Sequence[float | None]) -> float | None:
@@ -76,53 +86,68 @@ def wave_speed(z: Sequence[float], times: Sequence[float | None]) -> float | Non
     return float(np.sum(dt * (zs - zs.mean())) / np.sum(dt * dt))
 
 
-def lumen_depth(geometry: Mapping[str, Any], registry: Registry) -> float | None:
-    """a = A/w(R): the lumen's section A = ∫₀^R w(r) dr per unit of its wall's measure w(R), for the measure
-    w = c rᵏ of the case's ``[geometry]`` (resolved): R/(1 + k) — R in the planar channel, R/2 in a tube.
+def arrival_speed(lumen: Mapping[str, Mapping[str, Any]], key: str) -> Speed:
+    """:func:`wave_speed` of the ``key`` times (``peak_time``, ``half_peak_time``) of the lumen's η probes
+    (their :func:`arrival` entries, by name), or why there is none.
 
-    None when the geometry's plugin cannot be built from the case.
+    A probe whose peak is on the last row, below :data:`~multilayer.campaign.pulse_wave.ARRIVED` of the largest
+    peak, or whose first row already holds half its peak, has seen no arrival and is left out.
+
+    >>> entry = lambda z, t: {"z": z, "peak": 1.0, "peak_time": t, "peaked": True, "displaced": False}
+    >>> arrival_speed({"a": entry(1.0, 0.002), "b": entry(2.0, 0.004)}, "peak_time").cell()
+    '500'
+    >>> arrival_speed({"a": entry(1.0, 0.004), "b": entry(2.0, 0.002)}, "peak_time").reason
+    'the arrivals do not come later downstream (a wave running upstream, or a wall started deflected)'
     """
-    radius = geometry.get("radius")
-    found = registry.find("geometry", geometry.get("kind", "planar"))
-    if radius is None or found is None:
-        return None
-    try:
-        shape = found.record.factory(**{k: v for k, v in geometry.items() if k not in ("kind", "length", "radius")})
-    except (TypeError, ValueError):
-        return None
-    return radius / (1 + shape.radial_power)
+    largest = max((e["peak"] for e in lumen.values() if e["peak"] is not None), default=0.0)
+    used, left = [], []
+    for name, e in lumen.items():
+        why = ("no pulse" if e["peak"] is None else "its peak is on the last row" if not e["peaked"]
+               else "not arrived: its peak is under 1 % of the largest" if e["peak"] < ARRIVED * largest
+               else "its first row already holds half its peak" if e["displaced"] else "")
+        if why:
+            left.append(f"{name}: {why}")
+        else:
+            used.append(e)
+    times = {e[key] for e in used}
+    if len(used) < 2:
+        return Speed(None, "fewer than two arrivals" + (f" ({'; '.join(left)})" if left else ""))
+    if len(times) < 2 or len({e["z"] for e in used}) < 2:
+        return Speed(None, "every arrival at the same time or place")
+    speed = wave_speed([e["z"] for e in used], [e[key] for e in used])
+    if speed is None or not speed > 0.0:
+        return Speed(None, "the arrivals do not come later downstream (a wave running upstream, or a wall started "
+                           "deflected)")
+    return Speed(speed)
 
 
-def long_wave_speeds(case: Mapping[str, Any], registry: Registry) -> dict[str, float | None]:
-    """√(a·C0/ρ_f), and √(a·C0/(ρ_f + ρ₁h/a)) with the wall's inertia (theory §9, §11).
+def loop_speeds(run: RunData, probes: Mapping[str, Mapping[str, Any]], registry: Registry) -> list[dict[str, Any]]:
+    """:func:`~multilayer.campaign.pulse_wave.loop_speed` at every place with a ``p`` probe and an ``eta`` probe
+    on the lumen (the first of each at that z): ``z``, the two probes' names, ``value`` and ``reason``.
 
-    a is :func:`lumen_depth` (R in the planar channel, where these are
-    √(R·C0/ρ_f) and √(R·C0/(ρ_f + ρ₁h/R)); R/2 in a tube, Moens–Korteweg's
-    √(R·C0/(2ρ_f))).  C0 is the ``long_wave_stiffness(radius=R)`` of the
-    first thin layer, built by its plugin's factory from the resolved case.
-    None without a fluid, a thin layer, or with C0 = 0 (a wave membrane).
-    """
-    none = {"long_wave_speed": None, "long_wave_speed_inertia": None}
-    fluid, geometry = case.get("fluid"), case.get("geometry") or {}
-    radius, depth = geometry.get("radius"), lumen_depth(geometry, registry)
-    if not fluid or radius is None or depth is None:
-        return none
-    for spec in case.get("layers") or []:
-        found = registry.find("layer", spec.get("model", ""))
-        if found is None or not found.record.thin:
+    ``probes`` are the column's probe entries with their feet (``foot_time``, ``foot_reason``): where either
+    probe has none (the pulse has not arrived, or has not passed) there is no loop either."""
+    geometry, fluid = run.case.get("geometry") or {}, run.case.get("fluid")
+    power = radial_power(geometry, registry)
+    out = []
+    for name, e in probes.items():
+        if e["quantity"] != "p":
             continue
-        try:
-            layer = found.record.factory(**{k: v for k, v in spec.items() if k not in ("model", "cells")})
-            c0 = float(layer.long_wave_stiffness(radius=radius))
-        except (TypeError, ValueError):
-            return none
-        if c0 <= 0.0:
-            return none
-        rho = float(fluid["density"])
-        surface = getattr(layer, "density", 0.0) * getattr(layer, "thickness", 0.0) / depth
-        return {"long_wave_speed": math.sqrt(depth * c0 / rho),
-                "long_wave_speed_inertia": math.sqrt(depth * c0 / (rho + surface)) if surface else None}
-    return none
+        eta = next((n for n, q in probes.items() if q["quantity"] == "eta" and not q["line"] and q["z"] == e["z"]),
+                   None)
+        if eta is None or any(o["z"] == e["z"] for o in out):
+            continue
+        unseen = next((f"no {what} foot: {probes[n]['foot_reason']}" for n, what in ((name, "pressure"), (eta, "η"))
+                       if probes[n].get("foot_time") is None), None)
+        if not fluid or power is None or geometry.get("radius") is None:
+            speed = Speed(None, "no fluid" if not fluid else "the geometry is unknown here")
+        elif unseen:  # (the feet of foot_to_foot: a probe the pulse has not reached has none)
+            speed = Speed(None, unseen)
+        else:
+            speed = loop_speed(run.t, run.series[name], run.series[eta], geometry["radius"], power,
+                               float(fluid["density"]))
+        out.append({"z": e["z"], "pressure": name, "eta": eta, "value": speed.value, "reason": speed.reason})
+    return out
 
 
 def measure(run: RunData, reference: RunData | None, registry: Registry) -> dict[str, Any]:
@@ -143,11 +168,16 @@ def measure(run: RunData, reference: RunData | None, registry: Registry) -> dict
                 entry["max_abs_diff"] = None if other is None else max_abs_difference(
                     run.t, series[p["name"]], reference.t, reference.series[p["name"]])
         probes[p["name"]] = entry
-    # the speed is fitted to the arrivals the series has seen whole, of the pulse itself: a probe it has not
+    # the speeds are fitted to the arrivals the series has seen whole, of the pulse itself: a probe it has not
     # reached yet shows only the precursor decaying ahead of it (orders of magnitude smaller), whose peak is no arrival
-    lumen = {n: e for n, e in probes.items() if e["quantity"] == "eta" and not e["line"] and e["peak"] is not None}
-    largest = max((e["peak"] for e in lumen.values()), default=0.0)
-    lumen = {n: e for n, e in lumen.items() if e["peaked"] and e["peak"] >= ARRIVED * largest}
+    lumen = {n: e for n, e in probes.items() if e["quantity"] == "eta" and not e["line"]}
+    speeds = {}
+    for key, quantity in (("pwv_foot_eta", "eta"), ("pwv_foot_p", "p")):
+        chosen = lumen if quantity == "eta" else {n: e for n, e in probes.items() if e["quantity"] == "p"}
+        speed, feet = foot_to_foot([(n, e["z"], run.t, series[n]) for n, e in chosen.items()])
+        speeds.update(speed.items(key))
+        for n, f in feet.items():
+            probes[n].update(foot_time=f.time, foot_reason=f.reason)
     pressures = [(float(np.nanmax(series[n])), n) for n, e in probes.items()
                  if e["quantity"] == "p" and np.isfinite(series[n]).any()]
     peak_pressure, peak_pressure_probe = max(pressures) if pressures else (None, None)
@@ -163,13 +193,16 @@ def measure(run: RunData, reference: RunData | None, registry: Registry) -> dict
         "steps": s.get("steps"),
         "wall_time_s": s.get("wall_time_s"),
         "probes": probes,
-        "wave_speed_peak": wave_speed([e["z"] for e in lumen.values()], [e["peak_time"] for e in lumen.values()]),
-        "wave_speed_half_peak": wave_speed([e["z"] for e in lumen.values()],
-                                           [e["half_peak_time"] for e in lumen.values()]),
-        **long_wave_speeds(run.case, registry),
+        **speeds,
+        "pwv_loop": loop_speeds(run, probes, registry),
+        **arrival_speed(lumen, "peak_time").items("wave_speed_peak"),
+        **arrival_speed(lumen, "half_peak_time").items("wave_speed_half_peak"),
+        **stack_long_wave_speed(run.case, registry).items("long_wave_speed"),
         "peak_pressure": peak_pressure,
+        "peak_pressure_mmHg": None if peak_pressure is None else peak_pressure / MMHG,
         "peak_pressure_probe": peak_pressure_probe,
         "final_energy": float(energy[-1]) if len(energy) else None,
+        "energy_unit": (s.get("units") or {}).get("energy", "erg/cm"),
         "max_relative_residual": float(np.nanmax(np.abs(residual))) if len(residual) else None,
     }
 

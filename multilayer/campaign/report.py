@@ -6,20 +6,36 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from multilayer.campaign.pulse_wave import Speed
+
 NONE = "—"
 
 
 def cell(value: Any) -> str:
-    """A table cell: numbers to 6 significant digits, None as a dash.
+    """A table cell: numbers to 4 significant digits, None as a dash.
 
-    >>> cell(1234.56789), cell(None), cell(3), cell("ok")
-    ('1234.57', '—', '3', 'ok')
+    >>> cell(1234.56789), cell(None), cell(3), cell("ok"), cell(4.170193e-15)
+    ('1235', '—', '3', 'ok', '4.17e-15')
     """
     if value is None:
         return NONE
     if isinstance(value, float):
-        return f"{value:.6g}"
+        return f"{value:.4g}"
     return str(value)
+
+
+def speed_cell(column: Mapping[str, Any], key: str) -> str:
+    """The speed ``key`` of a column: 4 significant digits, or a dash and why there is none."""
+    return Speed(column.get(key), column.get(f"{key}_reason") or "not measured").cell()
+
+
+def pressure_cell(value: float | None, mmhg: float | None) -> str:
+    """A pressure as a person reads it: mmHg, then dyn/cm².
+
+    >>> pressure_cell(13332.2, 10.0), pressure_cell(None, None)
+    ('10 (1.333e+04 dyn/cm²)', '—')
+    """
+    return NONE if value is None else f"{mmhg:.4g} ({value:.4g} dyn/cm²)"
 
 
 def _probe_names(columns: Sequence[Mapping[str, Any]], quantity: str) -> list[tuple[str, Mapping[str, Any]]]:
@@ -64,16 +80,43 @@ def rows(data: Mapping[str, Any]) -> list[tuple[str, list[str]]]:
             unfinished = [c["probes"].get(name, {}).get("peaked") is False and c["probes"][name][key] is not None
                           for c in columns]
             out.append((title, [f"{v} (last row)" if u else v for v, u in zip(cells, unfinished)]))
+    for name, entry in [(n, e) for n, e in etas if not e.get("line")] + _probe_names(columns, "p"):
+        out.append((f"foot time at `{name}` (s)", [_foot(c["probes"].get(name)) for c in columns]))
+    places = {(loop["z"], loop["pressure"], loop["eta"]) for c in columns for loop in c.get("pwv_loop", [])}
     out += [
-        row("wave speed from peak times (cm/s)", lambda c: c["wave_speed_peak"]),
-        row("wave speed from half-peak times (cm/s)", lambda c: c["wave_speed_half_peak"]),
-        row("long-wave speed √(a·C0/ρ_f), a = R/(1+k) (cm/s)", lambda c: c["long_wave_speed"]),
-        row("with wall inertia √(a·C0/(ρ_f + ρ₁h/a)) (cm/s)", lambda c: c["long_wave_speed_inertia"]),
-        row("peak pressure (dyn/cm²)", lambda c: c["peak_pressure"]),
-        row("final total energy", lambda c: c["final_energy"]),
+        ("PWV foot to foot, η probes on the lumen (cm/s)", [speed_cell(c, "pwv_foot_eta") for c in columns]),
+        ("PWV foot to foot, p probes (cm/s)", [speed_cell(c, "pwv_foot_p") for c in columns]),
+    ]
+    for z, pressure, eta in sorted(places):
+        out.append((f"PWV from the ΔP–ΔA loop at z = {z:g} (`{pressure}`, `{eta}`) (cm/s)",
+                    [_loop(c, z, pressure, eta) for c in columns]))
+    out += [
+        ("wave speed from peak times (cm/s)", [speed_cell(c, "wave_speed_peak") for c in columns]),
+        ("wave speed from half-peak times (cm/s)", [speed_cell(c, "wave_speed_half_peak") for c in columns]),
+        ("long-wave speed of the stack √(A/(ρ_f·dA/dP)) (cm/s)", [speed_cell(c, "long_wave_speed") for c in columns]),
+        ("peak pressure, mmHg (dyn/cm²)", [pressure_cell(c["peak_pressure"], c.get("peak_pressure_mmHg"))
+                                          for c in columns]),
+        ("final total energy", [_energy(c) for c in columns]),
         row("ledger max relative residual", lambda c: c["max_relative_residual"]),
     ]
     return out
+
+
+def _foot(entry: Mapping[str, Any] | None) -> str:
+    if not entry or "foot_time" not in entry:
+        return NONE
+    return cell(entry["foot_time"]) if entry["foot_time"] is not None else f"{NONE} ({entry['foot_reason']})"
+
+
+def _loop(column: Mapping[str, Any], z: float, pressure: str, eta: str) -> str:
+    loop = next((o for o in column.get("pwv_loop", []) if (o["z"], o["pressure"], o["eta"]) == (z, pressure, eta)),
+                None)
+    return NONE if loop is None else Speed(loop["value"], loop["reason"]).cell()
+
+
+def _energy(column: Mapping[str, Any]) -> str:
+    value = column["final_energy"]
+    return NONE if value is None else f"{value:.4g} {column.get('energy_unit') or 'erg/cm'}"
 
 
 def markdown(data: Mapping[str, Any]) -> str:
@@ -102,31 +145,39 @@ def markdown(data: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def plot_compared_probes(runs: Sequence[Any], path: Path) -> None:
-    """One panel per probe (every probe of any run), all runs overlaid against t.
+def plot_compared_probes(runs: Sequence[Any], path: Path) -> Any:
+    """One panel per probe (every probe of any run), all runs overlaid against t, each in the unit a person
+    reads (:func:`multilayer.results.figures.display`); returns the figure.
 
     (:func:`multilayer.results.figures.plot_probes` draws the probes of one run.)
     """
     # matplotlib is heavy (and results.figures loads it): imported only when the figure is drawn
     from matplotlib.figure import Figure
 
-    from multilayer.results.figures import save_figure
+    from multilayer.results.figures import fit, label_axis, save_figure, slide_style
 
     probes: dict[str, Mapping[str, Any]] = {}
+    units: dict[str, str] = {}
     for run in runs:
+        units = units or dict((run.summary or {}).get("units") or {})
         for p in run.probes:
             probes.setdefault(p["name"], p)
-    fig = Figure(figsize=(8, 1.0 + 2.2 * max(1, len(probes))), layout="constrained")
-    axes = fig.subplots(max(1, len(probes)), 1, sharex=True, squeeze=False)[:, 0]
-    if not probes:
-        axes[0].text(0.5, 0.5, "no probes", ha="center", va="center", transform=axes[0].transAxes)
-    for ax, (name, p) in zip(axes, probes.items()):
-        for run in runs:
-            if name in run.series:
-                ax.plot(run.t, run.series[name], label=run.label)
-        where = _where(p) + (f", r = {p['r']:g}" if p.get("r") is not None else "")
-        ax.set_title(f"{name}: {p['quantity']} at {where}", fontsize="medium")
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize="small")
-    axes[-1].set_xlabel("t (s)")
-    save_figure(fig, path)
+    with slide_style():
+        fig = Figure(figsize=(9, 1.4 + 2.6 * max(1, len(probes))), layout="constrained")
+        axes = fig.subplots(max(1, len(probes)), 1, sharex=True, squeeze=False)[:, 0]
+        if not probes:
+            axes[0].text(0.5, 0.5, "no probes", ha="center", va="center", transform=axes[0].transAxes)
+            axes[0].set_ylabel("no probes (–)")
+        for ax, (name, p) in zip(axes, probes.items()):
+            factor = label_axis(ax, p["quantity"], units)
+            for run in runs:
+                if name in run.series:
+                    ax.plot(run.t, factor * run.series[name], label=run.label)
+            where = (f"z = {p['z']:g} cm" + (f", r = {p['r']:g} cm" if p.get("r") is not None else "")
+                     + (f", line {p['line']}" if p.get("line") else ""))
+            ax.set_title(fit(f"{name}: {p['quantity']} at {where}", 7.0))
+            ax.grid(alpha=0.3)
+        axes[0].legend()
+        axes[-1].set_xlabel("t (s)")
+        save_figure(fig, path)
+    return fig

@@ -170,4 +170,8 @@ def write(out: Path, data: Mapping[str, Any]) -> None:
     """``stability.json``, ``stability.md`` and ``stability.png`` of ``data`` in the folder ``out``."""
     write_atomically(claim(out, "stability.json"), json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
     write_atomically(claim(out, "stability.md"), markdown(data))
-    plot(data, claim(out, "stability.png"))
+    # matplotlib is heavy (results.figures loads it): imported only when the figures are drawn
+    from multilayer.results.figures import slide_style
+
+    with slide_style():
+        plot(data, claim(out, "stability.png"))

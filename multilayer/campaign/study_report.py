@@ -20,7 +20,7 @@ from multilayer.results.campaign import claim
 from multilayer.results.files import write_atomically
 from multilayer.results.reading import without_nan
 
-ERROR_AXIS = "relative L∞ error of η (max over probes)"
+ERROR_AXIS = "relative L∞ error of η, max over probes (–)"
 
 
 def _pct(value: float | None) -> str:
@@ -212,7 +212,7 @@ def _tolerance_plot(data: Mapping[str, Any], out: Path) -> None:
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.legend(fontsize="small")
-    ax.set_xlabel("time.tolerance")
+    ax.set_xlabel("time.tolerance (–)")
     ax.set_ylabel(ERROR_AXIS)
     ax.grid(alpha=0.3, which="both")
     save_figure(fig, claim(out, "tolerance.png"))
@@ -222,4 +222,8 @@ def write(out: Path, data: Mapping[str, Any]) -> None:
     """``study.json``, ``study.md``, ``pareto.png`` and ``orders.png`` of ``data`` in the folder ``out``."""
     write_atomically(claim(out, "study.json"), json.dumps(without_nan(data), indent=2, allow_nan=False) + "\n")
     write_atomically(claim(out, "study.md"), markdown(data))
-    plot(data, out)
+    # matplotlib is heavy (results.figures loads it): imported only when the figures are drawn
+    from multilayer.results.figures import slide_style
+
+    with slide_style():
+        plot(data, out)

@@ -168,8 +168,8 @@ def pending(runs: Sequence[SweepRun], out: Path) -> list[SweepRun]:
 # -- collect -----------------------------------------------------------------------
 
 #: the measured quantities of every row besides the probes' peaks: (column, label in plots)
-QUANTITIES = (("wall_time_s", "wall time (s)"), ("dofs", "DOFs"),
-              ("max_relative_residual", "ledger relative residual"), ("wave_speed", "wave speed (cm/s)"))
+QUANTITIES = (("wall_time_s", "wall time (s)"), ("dofs", "DOFs (count)"),
+              ("max_relative_residual", "ledger relative residual (–)"), ("wave_speed", "wave speed (cm/s)"))
 
 
 def collect(runs: Sequence[SweepRun], out: Path, registry: Registry) -> list[dict[str, Any]]:
@@ -251,20 +251,26 @@ def plot(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], out: Path) -> l
         for r in ok:
             groups.setdefault(tuple(str(r[k]) for k in others), []).append(r)
         for ax, (column, label) in zip(axes, quantities):
+            drawn = False
             for group, members in groups.items():
                 points = sorted((position[str(r[key])], r[column]) for r in members if r.get(column) is not None)
                 if points:
                     name = ", ".join(f"{k}={v}" for k, v in zip(others, group))[:60] or None
                     ax.plot(*zip(*points), "o-", label=name)
-            ax.set_ylabel(label, fontsize="small")
-            ax.set_xlabel(key, fontsize="small")
+                    drawn = True
+            if not drawn:
+                ax.text(0.5, 0.5, "not measured", ha="center", va="center", transform=ax.transAxes)
+            ax.set_ylabel(label)
+            ax.set_xlabel(key)
             if not numeric:
-                ax.set_xticks(range(len(values)), [v[:24] for v in values], rotation=20, fontsize="x-small")
+                ax.set_xticks(range(len(values)), [v[:24] for v in values], rotation=20)
+            elif drawn:  # 20000 30000 ... run into each other on a slide: 2 3 ... × 10⁴
+                ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3), useMathText=True)
             ax.grid(alpha=0.3)
         for ax in axes[len(quantities):]:
             ax.set_visible(False)
         if len(groups) > 1 and len(groups) <= 8:
-            axes[0].legend(fontsize="x-small")
+            axes[0].legend(fontsize="small")
         name = figure_name(key)
         save_figure(fig, claim(out, name))
         written.append(name)
@@ -288,5 +294,9 @@ def write_plan(runs: Sequence[SweepRun], keys: Sequence[str], out: Path, case_fi
 def write_report(out: Path, rows: Sequence[Mapping[str, Any]], keys: Sequence[str], command: str) -> None:
     """``sweep.csv``, one ``sweep_<key>.png`` per swept key and ``sweep.md`` of the :func:`collect` rows in ``out``."""
     write_csv(rows, claim(out, "sweep.csv"))
-    figures = plot(rows, keys, out)
+    # matplotlib is heavy (results.figures loads it): imported only when the figures are drawn
+    from multilayer.results.figures import slide_style
+
+    with slide_style():
+        figures = plot(rows, keys, out)
     write_atomically(claim(out, "sweep.md"), markdown(rows, keys, command, figures))

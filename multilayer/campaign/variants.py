@@ -61,12 +61,41 @@ def unique(labels: Sequence[str]) -> list[str]:
     return out
 
 
-def _vary_label(key: str, text: str) -> str:
-    value = parse_value(text)
-    if isinstance(value, Mapping):
-        return sanitize(str(value.get("model", key)))
-    tail = [s for s in key_steps(key) if isinstance(s, str)][-1]
-    return sanitize(f"{tail}={text}")
+#: keys whose value is a whole plugin table (``coupler = "monolithic"`` names its model, as ``{model = ...}`` does)
+MODEL_KEYS = ("fluid", "coupler", "model")
+
+
+def vary_labels(key: str, texts: Sequence[str]) -> list[str]:
+    """One label per ``--vary`` value, alike for alike values: a model by its name (a bare name for a plugin
+    table, or a table's ``model``, followed by the table's keys that differ between the values when the name
+    alone repeats), any other value as ``<last key>=<value>``.
+
+    >>> vary_labels("layers[0].tension", ["2e4", "8e4"])
+    ['tension=2e4', 'tension=8e4']
+    >>> vary_labels("coupler", ['kinematic-splitting', '{model="monolithic", scheme="bdf2"}'])
+    ['kinematic-splitting', 'monolithic']
+    >>> vary_labels("coupler", ['{model="monolithic", scheme="bdf2"}', '{model="monolithic", scheme="crank-nicolson"}'])
+    ['monolithic+scheme=bdf2', 'monolithic+scheme=crank-nicolson']
+    """
+    steps = key_steps(key)
+    names = [s for s in steps if isinstance(s, str)]
+    whole_table = isinstance(steps[-1], int) or names[-1] in MODEL_KEYS
+    values = [parse_value(text) for text in texts]
+    tables = [v for v in values if isinstance(v, Mapping)]
+    labels = []
+    for text, value in zip(texts, values):
+        if isinstance(value, Mapping):
+            model = str(value.get("model", names[-1]))
+            if sum(str(t.get("model", names[-1])) == model for t in tables) > 1:
+                same = [t for t in tables if str(t.get("model", names[-1])) == model]
+                differ = [k for k in value if k != "model" and any(t.get(k) != value[k] for t in same)]
+                model = "+".join([model, *(f"{k}={value[k]}" for k in differ)])
+            labels.append(sanitize(model))
+        elif whole_table and isinstance(value, str):
+            labels.append(sanitize(value))
+        else:
+            labels.append(sanitize(f"{names[-1]}={text}"))
+    return labels
 
 
 def make_variants(case_files: Sequence[Path], vary: str | None = None, overrides: Sequence[str] = ()) -> list[Variant]:
@@ -84,7 +113,7 @@ def make_variants(case_files: Sequence[Path], vary: str | None = None, overrides
         key, values = parse_vary(vary)
         if len(files) != 1:
             raise CaseError([Problem("--vary", vary, f"varies one case file; got {len(files)}")])
-        labels = unique([_vary_label(key, v) for v in values])
+        labels = unique(vary_labels(key, values))
         return [Variant(label, files[0], (*overrides, f"{key}={v}")) for label, v in zip(labels, values)]
     if not files:
         raise CaseError([Problem("compare", [], "expected one or more case files")])

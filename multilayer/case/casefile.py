@@ -68,6 +68,7 @@ from multilayer.functions.formula import Formula, FormulaError
 from multilayer.functions.loads import FormulaPressure, load_from_spec
 from multilayer.geometry.contract import Geometry as Shape
 from multilayer.numerics.linsolve import SINGLE, Reuse
+from multilayer.plugin import units
 from multilayer.plugin.problems import (
     MISSING,
     CaseError,
@@ -116,13 +117,19 @@ def load_case(path: Path | str, overrides: Iterable[str] = (), registry: Registr
 def validate_data(data: Mapping[str, Any], base_dir: Path | str = ".", registry: Registry | None = None) -> Case:
     """Validate parsed case data and build the :class:`~multilayer.case.model.Case`.
 
+    Values may carry their units (``"80 mmHg"``, converted to CGS); a plain
+    number implausible for its key is noted in ``case.warnings``
+    (:mod:`multilayer.plugin.units`).
+
     Raises
     ------
     CaseError
         Listing every problem found.
     """
     registry = registry or Registry.load()
-    return _Validator(registry, Path(base_dir)).case(data)
+    with units.collecting() as notes:
+        case = _Validator(registry, Path(base_dir)).case(data)
+    return attrs.evolve(case, warnings=tuple(notes))
 
 
 # -- validation -------------------------------------------------------------

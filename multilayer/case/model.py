@@ -205,3 +205,6 @@ class Case:
     digest: str = ""
     #: the folder relative file names of the case (table loads) are read from
     base_dir: str = attrs.field(default=".", eq=False)
+    #: what validation found odd but not wrong, one line each: a plain number implausible in its key's CGS unit
+    #: (``layers[1].young = 400: did you mean 400 kPa = 4e+06 dyn/cm²? ...``; :mod:`multilayer.plugin.units`)
+    warnings: tuple[str, ...] = attrs.field(default=(), eq=False)

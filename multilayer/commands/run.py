@@ -71,12 +71,20 @@ def run(options: RunOptions) -> int:
         case = load_case(options.case, options.overrides, options.registry)
     except CaseError as exc:
         return invalid_case(options.case, exc)
+    warn(case)
     if options.checkpoint_every < 0:
         print(f"--checkpoint-every = {options.checkpoint_every}: expected a whole number of steps >= 0",
               file=sys.stderr)
         return INVALID
     return run_or_resume(case, options.out, options.registry, quiet=options.quiet, no_plots=options.no_plots,
                          checkpoint_every=options.checkpoint_every, force=options.force)
+
+
+def warn(case: Case) -> None:
+    """What validation found odd in ``case`` (``case.warnings``: a plain number implausible in its unit), on
+    stderr, one line each."""
+    for warning in case.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def invalid_case(path: Path, error: CaseError) -> int:

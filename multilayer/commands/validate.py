@@ -11,7 +11,7 @@ from multilayer.campaign.sweep import read_sweep_table
 from multilayer.case.casefile import load_case
 from multilayer.case.model import Case, TimeSpec
 from multilayer.commands.common import OK, case_options, plugin_options
-from multilayer.commands.run import invalid_case
+from multilayer.commands.run import invalid_case, warn
 from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 
@@ -42,6 +42,7 @@ def validate(options: ValidateOptions) -> int:
         case = load_case(options.case, options.overrides, options.registry)
     except CaseError as exc:
         return invalid_case(options.case, exc)
+    warn(case)
     print(describe(options.case, case))
     describe_sweep(options.case)
     return OK

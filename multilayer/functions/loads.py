@@ -6,7 +6,8 @@ knows its exact integral where a closed form exists (constant, cosine pulse,
 sine, piecewise-linear table) and a 5-point Gauss–Legendre rule otherwise
 (formula).
 
-A case file writes a load as a number (constant), a string (formula in
+A case file writes a load as a number (constant, in CGS), a number with
+its unit (``"80 mmHg"``, ``"6 mL/s"``: a constant), a string (formula in
 ``t``) or a table ``{kind = "...", ...}``; :func:`load_from_spec` turns any
 of them into a :class:`PressureLoad` or raises a
 :class:`~multilayer.plugin.problems.CaseError` naming the key path.  The
@@ -28,6 +29,7 @@ from scipy.interpolate import CubicSpline
 
 from multilayer.functions.formula import Formula, FormulaError
 from multilayer.functions.tablefile import MAX_TABLE_TIME, FileRefused, read_csv
+from multilayer.plugin import units
 from multilayer.plugin.problems import (
     MISSING,
     CaseError,
@@ -430,6 +432,8 @@ def load_from_spec(
     {'kind': 'constant', 'value': 0.0}
     >>> round(load_from_spec("1e4*t", "loads.inlet").average(0.0, 2.0), 9)
     10000.0
+    >>> load_from_spec("10 mmHg", "loads.inlet").to_dict()
+    {'kind': 'constant', 'value': 13332.2387415}
     >>> load_from_spec({"kind": "cosine-pulse", "amplitude": 1.3333e4, "duration": 0.003}, "loads.inlet").kind
     'cosine-pulse'
     >>> load_from_spec({"kind": "cosine-puls", "amplitude": 1.0}, "loads.inlet")
@@ -445,9 +449,16 @@ def load_from_spec(
     if isinstance(spec, int | float) and not isinstance(spec, bool):
         if not math.isfinite(spec):
             raise CaseError([Problem(path, spec, f"expected a finite {quantity} ({unit})")])
+        unlikely = units.implausible(path.rpartition(".")[2], unit, float(spec))
+        if unlikely:
+            units.note(f"{path} = {spec!r}: {unlikely}")
         return ConstantPressure(spec)
     if isinstance(spec, str):
-        return FormulaPressure(_formula(spec, path, constants))
+        try:
+            value = units.to_cgs(spec, unit)  # "80 mmHg": a constant with its unit
+        except units.UnitError as exc:
+            raise CaseError([Problem(path, spec, str(exc))]) from None
+        return FormulaPressure(_formula(spec, path, constants)) if value is None else ConstantPressure(value)
     if not isinstance(spec, Mapping):
         raise CaseError([Problem(path, spec, "expected a number, a formula in t or a table {kind = ...}")])
     kind = spec.get("kind", MISSING)

@@ -13,6 +13,7 @@ from typing import Any
 
 import attrs
 
+from multilayer.plugin import units
 from multilayer.plugin.records import Param
 from multilayer.plugin.registry import nearest
 
@@ -132,7 +133,11 @@ def check_params(
 
     Keys in ``extra`` are allowed and left to the caller.  Returns the
     checked values (every schema key, defaults included, in schema order)
-    and the problems found.
+    and the problems found.  A number parameter may be given with its unit
+    (``"80 mmHg"``): it is converted to the parameter's CGS ``unit``
+    (:func:`multilayer.plugin.units.to_cgs`; another dimension is a
+    problem).  A plain number implausible in that unit is noted
+    (:func:`multilayer.plugin.units.note`) for the validation collecting.
 
     >>> schema = (Param("density", gt=0), Param("thickness", gt=0, default=0.1))
     >>> check_params({"density": 1}, schema, "layers[0]")
@@ -140,6 +145,10 @@ def check_params(
     >>> print(*check_params({"densty": 1}, schema, "layers[0]")[1], sep="\\n")
     layers[0].densty = 1: unknown key; did you mean 'density'?
     layers[0].density: missing; expected a number > 0
+    >>> check_params({"thickness": "50 µm"}, (Param("thickness", unit="cm", gt=0),), "layers[0]")[0]
+    {'thickness': 0.005}
+    >>> print(*check_params({"thickness": "80 mmHg"}, (Param("thickness", unit="cm", gt=0),), "layers[0]")[1])
+    layers[0].thickness = '80 mmHg': 80 mmHg is a pressure; expected a length (cm), like '0.3 cm'
     """
     schema = tuple(schema)
     if not isinstance(values, Mapping):
@@ -163,10 +172,24 @@ def check_params(
         if (raw is None or (raw == "none" and param.type is not str)) and param.default is None:
             checked[param.name] = None  # resolved JSON writes an unset option as null; "none" (--set, --vary) unsets
             continue
-        value, ok = check_value(param, raw)
+        given = raw
+        if isinstance(raw, str) and param.type is float:  # a value with its unit ("80 mmHg"), in the key's CGS unit
+            try:
+                converted = units.to_cgs(raw, param.unit)
+            except units.UnitError as exc:
+                problems.append(Problem(where, raw, str(exc)))
+                continue
+            given = raw if converted is None else converted
+        value, ok = check_value(param, given)
         if ok:
             checked[param.name] = value
+            if given is raw and param.type is float:
+                unlikely = units.implausible(param.name, param.unit, value)
+                if unlikely:
+                    units.note(f"{where} = {show(raw)}: {unlikely}")
         else:
             hint = did_you_mean(raw, map(str, param.choices)) if param.choices and isinstance(raw, str) else ""
+            if given is not raw:
+                hint = f"{raw} = {given:.6g} {param.unit}"
             problems.append(Problem(where, raw, f"expected {describe(param)}", hint))
     return checked, problems

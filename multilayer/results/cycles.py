@@ -28,10 +28,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from multilayer.plugin.units import MMHG
 from multilayer.results.reading import without_nan
-
-#: dyn/cm² in one mmHg (133.322387415 Pa)
-MMHG = 1333.22387415
 
 
 def windows(t: np.ndarray, period: float, start: float = 0.0) -> list[tuple[int, float, float]]:

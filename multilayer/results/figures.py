@@ -1,13 +1,19 @@
 """The figures of one run, from its results folder alone: ``multilayer plot DIR`` and the end of ``run``.
 
 * ``eta_spacetime.png`` — η(z, t) on the lumen line (from ``eta_lumen.csv``);
-* ``probes.png`` — every probe against time, one panel per quantity, each axis with its unit;
+* ``probes.png`` — every probe against time, one panel per quantity;
 * ``energy.png`` — the energy ledger: stored energy, cumulative work and
   dissipation, and the relative residual of every step;
 * ``wss.png`` — the wall shear stress τ_w(z, t) (from ``wss_lumen.csv``) and, under a periodic load, TAWSS and
   OSI along the lumen over the last complete cycle (``summary.json`` ``wss``);
 * ``cycles.png`` — under a periodic load, every pressure over each complete cycle, overlaid (mmHg), and the
   largest relative change of the cycle summaries from one cycle to the next (``summary.json`` ``cycles``).
+
+Made to be shown on a slide: fonts of 12 pt and more (:data:`SLIDE`), titles
+wrapped to the figure's width rather than cut, a unit on every axis, and the
+units a person reads (:func:`display`): displacements in µm, pressures in
+mmHg (dyn/cm² on the right-hand axis), a tube's flow rates in mL/s.  The
+data behind them stay CGS.
 
 A figure replaces only a file the run owns (its folder's manifest lists it,
 :func:`multilayer.results.folder.may_write`); a file of that name the run did
@@ -17,30 +23,80 @@ fresh temporary and renamed into place: a symbolic link is never followed.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import textwrap
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 
+import matplotlib
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from multilayer.results.cycles import MMHG, inside
+from multilayer.plugin.units import MMHG
+from multilayer.results.cycles import inside
 from multilayer.results.files import atomic_file
 from multilayer.results.folder import may_write
 from multilayer.results.reading import lumen_eta, lumen_wss, read_run
+from multilayer.results.readouts import QUANTITIES, TUBE_FLOW, unit_of
 
-#: what each probe quantity is, and its unit (CGS)
-QUANTITIES = {
-    "eta": ("η, radial wall displacement", "cm"),
-    "v": ("v, radial wall velocity", "cm/s"),
-    "d_z": ("d_z, axial wall displacement", "cm"),
-    "d_r": ("d_r, radial wall displacement", "cm"),
-    "u_z": ("u_z, axial fluid velocity", "cm/s"),
-    "u_r": ("u_r, radial fluid velocity", "cm/s"),
-    "p": ("p, pressure", "dyn/cm²"),
-    "flow_rate": ("Q, flow rate", "cm²/s"),
-}
+#: font sizes legible on a slide (points; a figure is 8 to 11 inches wide)
+SLIDE = {"font.size": 12, "axes.titlesize": 13, "axes.labelsize": 12, "xtick.labelsize": 11,
+         "ytick.labelsize": 11, "legend.fontsize": 10, "figure.titlesize": 14}
+#: characters of a title per inch of its axes' width at :data:`SLIDE`'s title size
+CHARACTERS_PER_INCH = 9.5
+#: µm in a cm
+MICRONS = 1e4
+
+
+@contextmanager
+def slide_style() -> Iterator[None]:
+    """The figures' fonts (:data:`SLIDE`), for what is drawn inside."""
+    with matplotlib.rc_context(SLIDE):
+        yield
+
+
+def fit(text: str, inches: float) -> str:
+    """``text`` wrapped into lines that fit a width of ``inches`` at the title size: a title is never cut.
+
+    >>> print(fit("Pressure pulse in a three-layer artery: intima | media | adventitia", 4.0))
+    Pressure pulse in a three-layer
+    artery: intima | media | adventitia
+    """
+    return "\n".join(textwrap.wrap(text, max(12, int(CHARACTERS_PER_INCH * inches))) or [""])
+
+
+def display(quantity: str, units: Mapping[str, str] | None = None) -> tuple[str, float, str]:
+    """(symbol, factor, unit) a person reads a probe ``quantity`` in: the CGS value times ``factor`` is in
+    ``unit``.  ``units`` are the run's integral units (``summary.json`` ``units``).
+
+    >>> display("eta"), display("p")[0], round(display("p")[1] * MMHG, 12), display("p")[2]
+    (('η', 10000.0, 'µm'), 'p', 1.0, 'mmHg')
+    >>> display("flow_rate", {"flow_rate": "cm³/s"}), display("flow_rate"), display("u_z")
+    (('Q', 1.0, 'mL/s'), ('Q', 1.0, 'cm²/s'), ('u_z', 1.0, 'cm/s'))
+    """
+    symbol = QUANTITIES.get(quantity, (quantity,))[0].split(",")[0]
+    unit = unit_of(quantity, units)
+    if unit == "cm":
+        return symbol, MICRONS, "µm"
+    if quantity == "p":
+        return symbol, 1.0 / MMHG, "mmHg"
+    if unit == TUBE_FLOW:
+        return symbol, 1.0, "mL/s"
+    return symbol, 1.0, unit
+
+
+def label_axis(ax: Axes, quantity: str, units: Mapping[str, str] | None = None) -> float:
+    """The y label of ``quantity`` in the unit a person reads (a pressure also in dyn/cm², on the right); the
+    factor from CGS to it."""
+    symbol, factor, unit = display(quantity, units)
+    ax.set_ylabel(f"{symbol} ({unit})")
+    if quantity == "p":
+        right = ax.secondary_yaxis("right", functions=(lambda mmhg: mmhg * MMHG, lambda dyn: dyn / MMHG))
+        right.set_ylabel("p (dyn/cm²)")
+    return factor
 
 
 def plot_run(folder: Path | str) -> list[Path]:
@@ -55,7 +111,7 @@ def plot_run(folder: Path | str) -> list[Path]:
     radius = (run.case.get("geometry") or {}).get("radius")
     field = lumen_eta(folder, radius) if radius is not None and may_write(folder, "eta_spacetime.png") else None
     if field is not None:
-        plot_spacetime({run.case.get("title", folder.name)[:60] or folder.name: field}, folder / "eta_spacetime.png")
+        plot_spacetime({folder.name: field}, folder / "eta_spacetime.png", title=run.case.get("title") or None)
         written.append(folder / "eta_spacetime.png")
     if run.probes and len(run.t) and may_write(folder, "probes.png"):
         plot_probes(run, folder / "probes.png")
@@ -78,24 +134,25 @@ def _where(p) -> str:
     return f"z = {p['z']:g} cm" + (f", r = {p['r']:g} cm" if p.get("r") is not None else "")
 
 
-def plot_probes(run, path: Path) -> None:
-    """One panel per probe quantity, every probe of that quantity against t, the axis in its unit."""
+def plot_probes(run, path: Path) -> Figure:
+    """One panel per probe quantity, every probe of that quantity against t, in the unit a person reads
+    (:func:`display`); returns the figure."""
     groups: dict[str, list] = {}
     for p in run.probes:
         groups.setdefault(p["quantity"], []).append(p)
-    fig = Figure(figsize=(8, 1.2 + 2.4 * len(groups)), layout="constrained")
-    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, (quantity, probes) in zip(axes, groups.items()):
-        for p in probes:
-            ax.plot(run.t, run.series[p["name"]], label=f"{p['name']} ({_where(p)})")
-        what, unit = QUANTITIES.get(quantity, (quantity, ""))
-        unit = _units(run).get(quantity, unit)
-        ax.set_ylabel(f"{what.split(',')[0]} ({unit})" if unit else what)
-        ax.set_title(what, fontsize="medium")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="small", ncols=2 if len(probes) > 4 else 1)
-    axes[-1].set_xlabel("t (s)")
-    save_figure(fig, path)
+    with slide_style():
+        fig = Figure(figsize=(9, 1.4 + 2.8 * len(groups)), layout="constrained")
+        axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
+        for ax, (quantity, probes) in zip(axes, groups.items()):
+            factor = label_axis(ax, quantity, _units(run))
+            for p in probes:
+                ax.plot(run.t, factor * run.series[p["name"]], label=f"{p['name']} ({_where(p)})")
+            ax.set_title(fit(QUANTITIES.get(quantity, (quantity,))[0], 7.0))
+            ax.grid(alpha=0.3)
+            ax.legend(ncols=2 if len(probes) > 3 else 1)
+        axes[-1].set_xlabel("t (s)")
+        save_figure(fig, path)
+    return fig
 
 
 def _units(run) -> dict[str, str]:
@@ -104,30 +161,32 @@ def _units(run) -> dict[str, str]:
     return (getattr(run, "summary", None) or {}).get("units") or {}
 
 
-def plot_energy(run, path: Path) -> None:
+def plot_energy(run, path: Path) -> Figure:
     """Stored energy, cumulative work and dissipation (erg per unit depth, or in the geometry's units), and
-    each step's residual."""
+    each step's residual; returns the figure."""
     s, t = run.series, run.t
     work = np.cumsum(sum((s[k] for k in s if k.startswith("work.")), np.zeros_like(t)))
     dissipation = np.cumsum(sum((s[k] for k in s if k.startswith("dissipation.")), np.zeros_like(t)))
     stored = s["energy.total"]
     initial = stored[0] - (work[0] - dissipation[0])  # E⁰ = E¹ − work¹ + dissipation¹ (the ledger of step 1)
-    fig = Figure(figsize=(8, 6), layout="constrained")
-    top, bottom = fig.subplots(2, 1, sharex=True)
-    top.plot(t, stored, label="stored energy E")
-    top.plot(t, initial + work, label="E⁰ + cumulative work")
-    top.plot(t, dissipation, label="cumulative dissipation (viscous, numerical, …)")
-    top.set_ylabel(f"energy ({_units(run).get('energy', 'erg/cm')})")
-    top.set_title("energy ledger: E = E⁰ + work − dissipation every step", fontsize="medium")
-    top.grid(alpha=0.3)
-    top.legend(fontsize="small")
-    residual = np.maximum(s.get("energy.relative_residual", np.zeros_like(t)), 1e-300)
-    bottom.semilogy(t, residual, ".", ms=3)
-    bottom.set_ylabel("|residual| / scale")
-    bottom.set_xlabel("t (s)")
-    bottom.set_title("relative residual of each step's energy identity", fontsize="medium")
-    bottom.grid(alpha=0.3)
-    save_figure(fig, path)
+    with slide_style():
+        fig = Figure(figsize=(9, 7), layout="constrained")
+        top, bottom = fig.subplots(2, 1, sharex=True)
+        top.plot(t, stored, label="stored energy E")
+        top.plot(t, initial + work, label="E⁰ + cumulative work")
+        top.plot(t, dissipation, label="cumulative dissipation")
+        top.set_ylabel(f"energy ({_units(run).get('energy', 'erg/cm')})")
+        top.set_title(fit("energy ledger: E = E⁰ + work − dissipation every step", 7.5))
+        top.grid(alpha=0.3)
+        top.legend()
+        residual = np.maximum(s.get("energy.relative_residual", np.zeros_like(t)), 1e-300)
+        bottom.semilogy(t, residual, ".", ms=4)
+        bottom.set_ylabel("|residual| / scale (–)")
+        bottom.set_xlabel("t (s)")
+        bottom.set_title(fit("relative residual of each step's energy identity", 7.5))
+        bottom.grid(alpha=0.3)
+        save_figure(fig, path)
+    return fig
 
 
 def _edges(x: np.ndarray) -> tuple[float, float]:
@@ -147,27 +206,47 @@ def save_figure(fig: Figure, path: Path) -> None:
         fig.savefig(f, dpi=100, format=Path(path).suffix.lstrip(".").lower() or "png")
 
 
-def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray] | None], path: Path) -> None:
-    """η(z, t) per run side by side, on one symmetric colour scale."""
+def plot_spacetime(fields: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray] | None], path: Path,
+                   title: str | None = None) -> Figure:
+    """η(z, t) in µm per run side by side, on one colour scale; returns the figure.
+
+    A field of both signs gets a symmetric diverging scale (white at η = 0); one that keeps its sign (a wall
+    inflated by ``initial.pressure``) a sequential one from its least to its largest value, so that the
+    pulse shows on top of the offset.  ``title`` (the case's) is wrapped above the panels.
+    """
     labels = list(fields) or ["(none)"]
-    peak = max((float(np.nanmax(np.abs(f[2]))) for f in fields.values() if f is not None), default=0.0) or 1.0
-    fig = Figure(figsize=(1.0 + 3.2 * len(labels), 4.5), layout="constrained")
-    axes = fig.subplots(1, len(labels), sharey=True, squeeze=False)[0]
-    image = None
-    for ax, label in zip(axes, labels):
-        field = fields.get(label)
-        ax.set_title(label, fontsize="medium")
-        ax.set_xlabel("z (cm)")
-        if field is None:
-            ax.text(0.5, 0.5, "no snapshots", ha="center", va="center", transform=ax.transAxes)
-            continue
-        z, t, eta = field
-        image = ax.imshow(eta, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-peak, vmax=peak,
-                          extent=(*_edges(z), *_edges(t)), interpolation="nearest")
-    axes[0].set_ylabel("t (s)")
-    if image is not None:
-        fig.colorbar(image, ax=list(axes), label="η (cm)")
-    save_figure(fig, path)
+    # the columns a layer's pinned end holds at 0 for ever would stretch a sequential scale down to 0: left out
+    values = [f[2][:, np.any(f[2] != 0.0, axis=0)] for f in fields.values() if f is not None]
+    values = [v for v in values if v.size and np.isfinite(v).any()]
+    low = min((float(np.nanmin(v)) for v in values), default=0.0) * MICRONS
+    high = max((float(np.nanmax(v)) for v in values), default=0.0) * MICRONS
+    if low < 0.0 < high or low == high:
+        peak = max(abs(low), abs(high)) or 1.0
+        scale = {"cmap": "RdBu_r", "vmin": -peak, "vmax": peak}
+    else:
+        scale = {"cmap": "viridis", "vmin": low, "vmax": high}
+    width = 1.6 + 3.6 * len(labels)
+    with slide_style():
+        fig = Figure(figsize=(width, 5.2), layout="constrained")
+        axes = fig.subplots(1, len(labels), sharey=True, squeeze=False)[0]
+        image = None
+        for ax, label in zip(axes, labels):
+            field = fields.get(label)
+            ax.set_title(fit(label, 3.2))
+            ax.set_xlabel("z (cm)")
+            if field is None:
+                ax.text(0.5, 0.5, "no snapshots", ha="center", va="center", transform=ax.transAxes)
+                continue
+            z, t, eta = field
+            image = ax.imshow(MICRONS * eta, origin="lower", aspect="auto", extent=(*_edges(z), *_edges(t)),
+                              interpolation="nearest", **scale)
+        axes[0].set_ylabel("t (s)")
+        if image is not None:
+            fig.colorbar(image, ax=list(axes), label="η (µm)")
+        if title:
+            fig.suptitle(fit(title, width - 1.0))
+        save_figure(fig, path)
+    return fig
 
 
 def plot_wss(field: tuple[np.ndarray, np.ndarray, np.ndarray], block: Mapping | None, path: Path) -> None:

@@ -43,7 +43,8 @@ from multilayer.numerics.threads import blas_threads
 from multilayer.plugin.registry import Registry, plugin_versions
 from multilayer.results.files import open_nofollow
 from multilayer.results.folder import ResultsError, ResultsFolder
-from multilayer.results.reading import position_column
+from multilayer.results.reading import position_column, read_series
+from multilayer.results.readouts import probe_ranges
 from multilayer.runner import checkpoint
 from multilayer.runner.held import HeldResults
 from multilayer.runner.readouts import readouts
@@ -84,12 +85,14 @@ class RunResult:
     steps: int = 0
     max_relative_residual: float = 0.0
     t: float = 0.0
-    peaks: dict = attrs.field(factory=dict)  #: max |value| of every η probe
+    peaks: dict = attrs.field(factory=dict)  #: max |value| of every η probe (cm)
     #: the volume ledger's drift over the volume moved (None without a fluid)
     volume_drift: float | None = None
     #: the signal that stopped an interrupted run (``SIGINT``, ``SIGTERM``; the one its ``reason`` names, also when
     #: :func:`stop` gave it); empty for a run that was not interrupted
     signal: str = ""
+    #: every probe's range over the run (summary.json ``probe_ranges``: CGS, pressures in mmHg too)
+    ranges: dict = attrs.field(factory=dict)
 
 
 class Interrupted(Exception):
@@ -305,6 +308,8 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         crash = traceback.format_exc()
         print(crash, file=sys.stderr)
     tally = tally or Tally(0.0, EnergyBound(0.0, case.limits.energy_margin))
+    units = dict(setup.geometry.integral_units) if setup else {}
+    ranges = probe_ranges(case.resolved.get("output", {}).get("probes", []), _written_series(results), units)
     summary = {
         "status": status,
         "reason": reason,
@@ -313,7 +318,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "case": dict(case.resolved),
         "case_hash": case.digest,
         "plugins": plugin_versions(case, registry),
-        **({"units": dict(setup.geometry.integral_units)} if setup else {}),
+        **({"units": units} if setup else {}),
         "dofs": setup.dof_counts() if setup else {},
         "steps": tally.steps,
         "t": tally.t,
@@ -326,6 +331,7 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
         "krylov": _krylov(setup),
         **_newton(setup),
         "energy": {"max_relative_residual": tally.max_rel},
+        "probe_ranges": ranges,
         **({"volume": tally.volume.summary()} if tally.volume is not None else {}),
         **_iterations(tally.iterations),
         **({"resumed_from": resumed_from} if saved is not None else {}),
@@ -339,7 +345,18 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     finally:
         results.release()
     return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks),
-                     tally.volume.relative_drift if tally.volume is not None else None, stopped_by)
+                     tally.volume.relative_drift if tally.volume is not None else None, stopped_by, ranges)
+
+
+def _written_series(results: ResultsFolder | HeldResults) -> dict[str, np.ndarray]:
+    """``series.csv`` as written so far (every row of a resumed run too), by column."""
+    if results.path is None:
+        held = results.tables.get("series.csv")
+        return held.arrays() if held is not None else {}
+    try:
+        return read_series(results.path / "series.csv")
+    except (OSError, ResultsError):  # a folder that cannot be read back still gets its summary
+        return {}
 
 
 class Writers:

@@ -12,6 +12,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from multilayer.results.readouts import range_lines
+
 
 class ProgressBar:
     """Called after every step with the run's tally and the step's row (see :func:`multilayer.runner.loop.run_case`)."""
@@ -32,8 +34,8 @@ class ProgressBar:
 
 
 def summary(result, wall_time_s: float, folder: Path, checkpoint: bool = False) -> str:
-    """A few lines: status, steps, wall time, ledger residuals (energy, volume), peak |η| per probe, where the
-    results are."""
+    """A few lines: status, steps, wall time, ledger residuals (energy, volume), peak |η| per probe (in µm),
+    the pressures' ranges (mmHg, then dyn/cm²) and the flow rates' (mL/s in a tube), where the results are."""
     volume = ""
     if result.volume_drift is not None:
         volume = f", volume to {result.volume_drift:.1e} of the volume moved"
@@ -43,6 +45,7 @@ def summary(result, wall_time_s: float, folder: Path, checkpoint: bool = False) 
         lines.append(f"  {result.reason}")
     if result.peaks:
         lines.append("  peak |η|: " + ", ".join(f"{name} {1e4 * value:.4g} µm" for name, value in result.peaks.items()))
+    lines += [f"  {line}" for line in range_lines(getattr(result, "ranges", None) or {})]
     lines.append(f"  results in {folder}")
     if result.status == "interrupted" and checkpoint:
         lines.append(f"  resume with: multilayer resume {folder}")

@@ -123,3 +123,29 @@ def lumen_force(space: Any, pressure: float, eta: np.ndarray) -> np.ndarray:
 @skfem.LinearForm
 def _moved_load(v, w):
     return v * (1.0 + w["stretch"]) ** w["k"]
+
+
+def lumen_compliance(stack: Stack) -> np.ndarray:
+    """dη/dP on the lumen line (cm³/dyn, in the line's numbering): the deflection of the linear stack under a unit
+    uniform pressure on its reference lumen, the outer surface free.
+
+    Every layer of the stack carries its share, thin and thick: this is the static compliance that sets the long
+    waves' speed (theory §11, c² = A/(ρ_f dA/dP)).  Near the ends the layers' end conditions hold the wall; far
+    from them (a few wall thicknesses, or √(Rh) for a shell) it is the compliance of an endless wall.
+
+    >>> from multilayer.wall.stack import Stack, WallSpace
+    >>> from multilayer_plugins.koiter_shell import KoiterShell
+    >>> from multilayer_plugins.planar import Planar
+    >>> shell = KoiterShell(density=1.1, thickness=0.1, young=1e6, poisson=0.3)
+    >>> stack = Stack.assemble(WallSpace.build([shell], Planar(), 6.0, 0.5, 24, 2))
+    >>> compliance = lumen_compliance(stack)
+    >>> z = stack.space.lines[LUMEN].z
+    >>> float(compliance[np.argmin(abs(z - 3.0))] * shell.long_wave_stiffness(0.5)).__round__(6)  # 1/C0 mid-way
+    1.0
+    """
+    space = stack.space
+    free = stack.free
+    f = space.line_load(LUMEN)
+    d = np.zeros(space.ndofs)
+    d[free] = splu(stack.stiffness.tocsc()[free][:, free]).solve(f[free])
+    return space.restrictions[LUMEN] @ d
