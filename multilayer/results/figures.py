@@ -23,6 +23,7 @@ fresh temporary and renamed into place: a symbolic link is never followed.
 
 from __future__ import annotations
 
+import logging
 import textwrap
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -53,9 +54,16 @@ MICRONS = 1e4
 
 @contextmanager
 def slide_style() -> Iterator[None]:
-    """The figures' fonts (:data:`SLIDE`), for what is drawn inside."""
-    with matplotlib.rc_context(SLIDE):
-        yield
+    """The figures' fonts (:data:`SLIDE`), for what is drawn inside; matplotlib's font search says nothing on
+    stderr meanwhile (its fallbacks, 'findfont: Font family … not found', are no news to a user reading a run)."""
+    fonts = logging.getLogger("matplotlib.font_manager")
+    level = fonts.level
+    fonts.setLevel(logging.ERROR)
+    try:
+        with matplotlib.rc_context(SLIDE):
+            yield
+    finally:
+        fonts.setLevel(level)
 
 
 def fit(text: str, inches: float) -> str:
