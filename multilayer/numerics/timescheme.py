@@ -160,6 +160,18 @@ class TimeScheme(LinearMultistep):
     #: stored energy depends on the step ratio may exceed it without instability
     adaptive_energy_note: ClassVar[str] = ""
 
+    @property
+    def beta(self) -> tuple[float, ...]:
+        """A single-stage scheme's β (it defines its own); a multi-stage scheme has none, its stages do:
+
+        >>> named("tr-bdf2").beta
+        Traceback (most recent call last):
+        ...
+        AttributeError: tr-bdf2 takes 2 stages a step: step each stage, a single-stage scheme (TimeScheme.substeps)
+        """
+        raise AttributeError(f"{self.name} takes {len(self.stages)} stages a step: step each stage, a single-stage "
+                             f"scheme (TimeScheme.substeps)")
+
     # -- the step's stages -----------------------------------------------------------
     @property
     def stages(self) -> tuple[Stage, ...]:
@@ -307,6 +319,21 @@ def schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
         record = registry.get("scheme", name).record
         if not any(p.required for p in record.params):
             out[name] = registry.build("scheme", name)
+    return out
+
+
+def stage_schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
+    """The single-stage scheme of every stage of every registered scheme that takes its parameters' defaults
+    (:func:`schemes`), by name: the scheme's own for a single-stage one, ``<name>[k]`` for a multi-stage one's
+    stage k — what a test of one step's identity runs over.
+
+    >>> sorted(stage_schemes())
+    ['backward-euler', 'bdf2', 'crank-nicolson', 'tr-bdf2[0]', 'tr-bdf2[1]']
+    """
+    out = {}
+    for name, scheme in schemes(registry).items():
+        stages = scheme.stages
+        out.update({name: scheme} if len(stages) == 1 else {f"{name}[{k}]": s.scheme for k, s in enumerate(stages)})
     return out
 
 
