@@ -16,24 +16,25 @@ from tqdm import tqdm
 class ProgressBar:
     """Called after every step with the run's tally and the step's row (see :func:`multilayer.runner.loop.run_case`).
 
-    Its total is the simulated time, ``end`` seconds (from ``start``, a resumed run's): it moves with t, so
-    the bar and its estimate of the time left mean the same with fixed steps and with steps chosen by
-    error, whose number is not known ahead.  The postfix holds the step and the ledger's residual.
+    Its total is the simulated time, ``end`` seconds (from ``start``, a resumed run's, at its ``step``): it
+    moves with t, so the bar and its estimate of the time left mean the same with fixed steps and with steps
+    chosen by error, whose number is not known ahead.  The postfix holds the step and the ledger's residual.
 
-    >>> bar = ProgressBar(0.5, enabled=False)
-    >>> bar.bar.total, bar.bar.unit
-    (0.5, 's')
+    >>> bar = ProgressBar(0.5, 0.1, enabled=False)
+    >>> bar.bar.total, bar.bar.n
+    (0.5, 0.1)
     """
 
-    def __init__(self, end: float, start: float = 0.0, enabled: bool | None = None):
+    def __init__(self, end: float, start: float = 0.0, enabled: bool | None = None, step: int = 0):
         enabled = sys.stderr.isatty() if enabled is None else enabled
         self.end = end
         self.bar = tqdm(total=end, initial=start, unit="s", disable=not enabled, file=sys.stderr, dynamic_ncols=True,
-                        leave=False, bar_format="{l_bar}{bar}| t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
+                        leave=False, postfix=f"step {step}",
+                        bar_format="{l_bar}{bar}| t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
 
     def __call__(self, tally, row) -> None:
-        self.bar.update(min(tally.t, self.end) - self.bar.n)
         self.bar.set_postfix_str(f"step {tally.steps}, ledger {row['energy.relative_residual']:.1e}", refresh=False)
+        self.bar.update(min(tally.t, self.end) - self.bar.n)
 
     def close(self) -> None:
         self.bar.close()
