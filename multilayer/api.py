@@ -423,7 +423,7 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
     if progress is True:
         from multilayer.runner.progress import ProgressBar
 
-        bar = ProgressBar(case.time.steps, case.time.end, enabled=True)
+        bar = ProgressBar(case.time.end, enabled=True)
         callback = bar
     elif callable(progress):
         def callback(tally: Tally, row: dict) -> None:

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from multilayer.coupling.clock import Window, march
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import fluid_columns, fluid_groups
 from multilayer.fluid.contract import Domain
@@ -24,6 +25,7 @@ from multilayer.scene.state import State
 class FluidOnly(Coupler):
     name = "fluid-only"
     loads = ("inlet", "outlet")
+    multistage = True
 
     def check_case(self, case) -> list[str]:
         problems = super().check_case(case)
@@ -52,23 +54,26 @@ class FluidOnly(Coupler):
         return {**setup.fluid.energy(state.fluid, state.eta)}
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
-        S, dt, fluid = self.scheme, setup.dt, setup.fluid
+        fluid = setup.fluid
         moving = setup.case.loads.wall_motion is not None
         still = Domain.still(fluid.line.ndofs)
-        for n, t0, t1 in setup.windows(state.n):
+
+        def advance(state: State, w: Window) -> tuple[State, StepReport]:
+            S, dt = w.scheme, w.dt
             history = state.history(S.old_levels)
             if moving:
-                etas = [self._eta(setup, t1), *[x.eta for x in history]]
+                etas = [self._eta(setup, w.t1), *[x.eta for x in history]]
                 domain = Domain(S.geometry(etas), S.difference(etas) / dt)
             else:
                 etas, domain = [still.eta, still.eta], still
-            sol, f = fluid.step([x.fluid for x in history], domain, S, dt, (t0, t1),
+            sol, f = fluid.step([x.fluid for x in history], domain, S, dt, (w.t0, w.t1),
                                 eta_old=etas[1], eta_new=etas[0])
-            state = state.then(S.old_levels, n=n + 1, t=t1, fluid=sol.state, eta=etas[0])
             stored, work, dissipation = fluid_groups(f)
-            yield state, StepReport(stored, work, dissipation,
-                                    {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"],
-                                     **fluid_columns(f)}, alpha=S.alpha)
+            return state.then(S.old_levels, n=w.n + 1, t=w.t1, fluid=sol.state, eta=etas[0]), StepReport(
+                stored, work, dissipation, {"energy.relative_residual.A2": abs(f["a2.residual"]) / f["a2.scale"],
+                                            **fluid_columns(f)}, alpha=S.alpha)
+
+        return march(setup, self.scheme, state, advance)
 
 
 @hookimpl

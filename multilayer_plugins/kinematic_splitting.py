@@ -100,6 +100,7 @@ class KinematicSplitting(Coupler):
     name = "kinematic-splitting"
     loads = ("inlet", "outlet", "external")
     adaptive = True
+    multistage = True
 
     def __init__(self, scheme: TimeScheme | str = "backward-euler", beta: float | None = None, extrapolation: int = 1,
                  robin: str = "impedance"):
@@ -117,13 +118,16 @@ class KinematicSplitting(Coupler):
         self.robin = robin
 
     def scheme_problems(self, scheme: TimeScheme) -> list[str]:
-        """Also a one-step scheme (two time levels): the structure step hands the thin layer's velocity to the
-        fluid step as one level (A1's v*), and the step's identity is A1's and A2's over one level each."""
+        """Under the paper's Robin term (``robin = "inertia"``) also one-step stages (two time levels): its structure
+        step hands the thin layer's velocity to the fluid step as one level (A1's v*), and the step's identity is
+        A1's and A2's over one level each.  Under the impedance A3 completes a whole wall step with the scheme's
+        levels, so a multistep stage (BDF2's three levels) is stepped as the wall and the fluid step it alone."""
         problems = super().scheme_problems(scheme)
-        if scheme.levels != 2:
-            problems.append(f"{scheme.name} has {scheme.levels} time levels, and {self.name} takes one-step schemes "
-                            f"(two levels): its structure step hands the thin layer's velocity to the fluid step "
-                            f"as one level")
+        if self.robin == "inertia":
+            problems += [f"{scheme.name} has a stage of {stage.scheme.levels} time levels, and {self.name} with "
+                         f"robin = 'inertia' takes one-step stages (two levels): its structure step hands the thin "
+                         f"layer's velocity to the fluid step as one level"
+                         for stage in scheme.stages if stage.scheme.levels != 2][:1]
         return problems
 
     def fluid_interface_block(self, case) -> bool:
@@ -180,26 +184,28 @@ class KinematicSplitting(Coupler):
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
         fluid, wall = setup.fluid, setup.wall
         adaptive = setup.case.time.adaptive
-        a1 = StructureStep(setup.stack, self.scheme, setup.dt, setup.stats("wall"), setup.case.solver,
-                           fluid_line=LUMEN, reuse=setup.case.reuse)
+        structure = StructureStep(setup.stack, self.scheme, setup.dt, setup.stats("wall"), setup.case.solver,
+                                  fluid_line=LUMEN, reuse=setup.case.reuse)
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
         # per Δt the Robin matrix, the same object every step (its slots are looked up once), and with the
         # impedance the wall's response to a load on Γ
         operators: dict[float, tuple] = {}
 
-        def operator(S, dt: float) -> tuple:
-            if dt not in operators:
+        def operator(wall: StructureStep, dt: float) -> tuple:
+            key = wall.matrix_key(dt)  # the wall step's matrix: a new Δt, or a stage of another matrix, changes it
+            if key not in operators:
                 operators.clear()
                 if self.robin == "inertia":
-                    operators[dt] = ((S.inertia / dt) * lumen_mass(setup), None)
+                    operators[key] = ((wall.scheme.inertia / dt) * lumen_mass(setup), None)
                 else:
-                    operators[dt] = interface_impedance(a1, P, R, dt)
-            return operators[dt]
+                    operators[key] = interface_impedance(wall, P, R, dt)
+            return operators[key]
 
         def advance(state: State, w: Window) -> tuple[State, StepReport]:
             S, dt = w.scheme, w.dt
-            robin, response = operator(S, dt)
+            a1 = structure.using(S)  # the step's (a stage's) scheme, the factors of the same matrix shared
+            robin, response = operator(a1, dt)
             loads = window_loads(setup, S, w.t0, w.t1)
             tau = self.beta * self.traction(state, dt if adaptive else None)
             # A1: the structure, fluid frozen (its force only through β τ̃)
@@ -226,7 +232,7 @@ class KinematicSplitting(Coupler):
             extra = {"traction": traction}
             if response is None:
                 wall_new = a.wall
-                report = self.report(setup, state, a, f, masses, v_new, v_bar, tau, dt)
+                report = self.report(setup, S, state, a, f, masses, v_new, v_bar, tau, dt)
                 if adaptive:
                     extra.update(self.estimate(state, w, a.wall.d, P, R, v_mean_a1 - v_bar))
             else:
@@ -279,7 +285,7 @@ class KinematicSplitting(Coupler):
         out["estimate.next.wall.d"] = P @ (w.dt * 0.5 * (rate + state.extra.get("splitting.rate", rate)))
         return out
 
-    def report(self, setup, state: State, a, f, masses, v_new, v_bar, tau, dt: float) -> StepReport:
+    def report(self, setup, S: TimeScheme, state: State, a, f, masses, v_new, v_bar, tau, dt: float) -> StepReport:
         """The step's ledger: A1's identity and A2's, the thin layer's inertia resolved on its own side.
 
         The thin layer's kinetic energy after A1 (velocity ``a.v``) is the one A2
@@ -287,7 +293,6 @@ class KinematicSplitting(Coupler):
         scheme's identity is ``dissipation.splitting`` (none when x̄ = x^{n+1}: β₀ = 1, backward Euler),
         the β force's net work ``dissipation.beta`` (theory §6).
         """
-        S = self.scheme
         v_star = a.v
         stored = {**a.stored}
         numerical_thin = splitting = 0.0

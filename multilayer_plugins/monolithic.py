@@ -64,6 +64,7 @@ class Monolithic(ThickLumen, Coupler):
     name = "monolithic"
     loads = ("inlet", "outlet", "external")
     adaptive = True
+    multistage = True
 
     def check_case(self, case) -> list[str]:
         return super().check_case(case) + coupled_case_problems(self.name, case)
@@ -169,7 +170,7 @@ class Monolithic(ThickLumen, Coupler):
             solution = fluid.advance(system, x[: fluid.ndofs])
             wstep = structure.finish(history, x[glob], forces, dt, result)
             eta_new = R @ wstep.wall.d
-            axial, extra = None, {**state.extra, **prediction.extra()}
+            axial, extra = None, prediction.carried(state.extra)
             if Rz is not None:  # no-slip: the lumen's axial motion moves the domain too
                 extra.update(eta_z=Rz @ wstep.wall.d, v_z=Rz @ wstep.wall.V)
                 axial = (state.extra["eta_z"], extra["eta_z"])

@@ -2,13 +2,16 @@
 
 Loads: the external pressure P_e on the outer surface and a prescribed
 pressure on the lumen line; or free vibration from initial profiles.  Any
-scheme of :mod:`multilayer.numerics.timescheme`; the matrix is factorized once.
+scheme of :mod:`multilayer.numerics.timescheme` (a multi-stage one stage by stage:
+:func:`multilayer.coupling.clock.march`); the matrix is factorized once (once per distinct matrix of the
+stages: TR-BDF2's two share one).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 
+from multilayer.coupling.clock import Window, march
 from multilayer.coupling.contract import Coupler, StepReport
 from multilayer.coupling.kit import external_force, window_loads
 from multilayer.coupling.structure import StructureStep, wall_energy
@@ -21,6 +24,7 @@ from multilayer.scene.state import State
 class StructureOnly(Coupler):
     name = "structure-only"
     loads = ("external", "interface")
+    multistage = True
 
     def check_case(self, case) -> list[str]:
         problems = super().check_case(case)
@@ -35,16 +39,20 @@ class StructureOnly(Coupler):
         return wall_energy(setup.stack, self.scheme, state)
 
     def evolve(self, setup, state: State) -> Iterator[tuple[State, StepReport]]:
-        S, wall = self.scheme, setup.wall
-        step = StructureStep(setup.stack, S, setup.dt, setup.stats("wall"), setup.case.solver, reuse=setup.case.reuse)
-        unit_lumen = wall.line_load(0)
-        for n, t0, t1 in setup.windows(state.n):
-            loads = window_loads(setup, S, t0, t1)
+        structure = StructureStep(setup.stack, self.scheme, setup.dt, setup.stats("wall"), setup.case.solver,
+                                  reuse=setup.case.reuse)
+        unit_lumen = setup.wall.line_load(0)
+
+        def advance(state: State, w: Window) -> tuple[State, StepReport]:
+            S = w.scheme
+            loads = window_loads(setup, S, w.t0, w.t1)
             forces = {"external": external_force(setup, loads["external"]),
                       "interface": loads["interface"] * unit_lumen}
-            a = step.step(state, forces)
-            state = state.then(S.old_levels, n=n + 1, t=t1, wall=a.wall)
-            yield state, StepReport(a.stored, a.work, a.dissipation)
+            a = structure.using(S).step(state, forces, w.dt)  # a stage's scheme: the factors of its matrix shared
+            return state.then(S.old_levels, n=w.n + 1, t=w.t1, wall=a.wall), StepReport(a.stored, a.work,
+                                                                                         a.dissipation)
+
+        return march(setup, self.scheme, state, advance)
 
 
 @hookimpl

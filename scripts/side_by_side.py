@@ -1,15 +1,17 @@
 """Runs of one case measured side by side: steps, median wall time, errors against a reference folder.
 
     python scripts/side_by_side.py CASE --reference DIR --out DIR --probes eta_z1,eta_z2,eta_z3 \
-        [--set KEY=VALUE]... --run 'LABEL:KEY=VALUE;KEY=VALUE' ... [--repeat 3]
+        [--set KEY=VALUE]... --run 'LABEL:KEY=VALUE;KEY=VALUE' ... [--repeat 3] [--after SECONDS] [--measure-only]
 
 Every ``--run`` is the case with the ``--set`` overrides, then its own.  The
 runs take turns (run 1, run 2, ..., then again), ``--repeat`` times each,
 into ``OUT/LABEL/i``, so a shared machine's load falls on all of them alike.
-Prints a Markdown table: status, accepted steps, the median wall time, and
-the largest over the probes of the relative L∞ error and the peak error
-(``multilayer.campaign.accuracy.probe_errors``) against the reference run's
-folder (its series interpolated linearly onto each run's times).
+Prints a Markdown table: status, accepted steps, the steps' range, the median
+wall time, and the largest over the probes of the relative L∞ error and the
+peak error (``multilayer.campaign.accuracy.probe_errors``) against the
+reference run's folder (its series interpolated linearly onto each run's
+times), over the rows with t ≥ ``--after`` (all by default).  ``--measure-only``
+measures the runs an earlier call left in OUT again, running nothing.
 docs/accuracy.md, "Adaptive steps", uses it for the cost of a target error.
 """
 
@@ -20,16 +22,20 @@ import statistics
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from multilayer.campaign.accuracy import probe_errors
 from multilayer.case.casefile import load_case
 from multilayer.results.reading import read_run
 from multilayer.runner.loop import run_case
 
 
-def errors(folder: Path, reference, probes: list[str]) -> tuple[float, float]:
-    """(L∞ error, peak error), each the largest over ``probes``."""
+def errors(folder: Path, reference, probes: list[str], after: float = 0.0) -> tuple[float, float]:
+    """(L∞ error, peak error), each the largest over ``probes``, over the rows with t ≥ ``after`` (both series)."""
     run = read_run(folder.name, folder)
-    found = [probe_errors(run.t, run.series[p], reference.t, reference.series[p]) for p in probes]
+    mine, theirs = np.asarray(run.t) >= after, np.asarray(reference.t) >= after
+    found = [probe_errors(np.asarray(run.t)[mine], np.asarray(run.series[p])[mine], np.asarray(reference.t)[theirs],
+                          np.asarray(reference.series[p])[theirs]) for p in probes]
     return max(e["relative_linf"] for e in found), max(e["peak_error"] for e in found)
 
 
@@ -42,6 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", dest="sets", action="append", default=[])
     ap.add_argument("--run", dest="runs", action="append", required=True, help="LABEL:KEY=VALUE;KEY=VALUE")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--after", type=float, default=0.0,
+                    help="measure the errors over t ≥ AFTER only (s; a periodic run's last cycle)")
+    ap.add_argument("--measure-only", action="store_true",
+                    help="run nothing: measure the runs an earlier call left in OUT (other probes, another --after)")
     args = ap.parse_args(argv)
     probes = args.probes.split(",")
     reference = read_run("reference", args.reference)
@@ -51,18 +61,21 @@ def main(argv: list[str] | None = None) -> int:
     for i in range(args.repeat):
         for label, sets in runs:
             folder = args.out / label / str(i)
-            result = run_case(load_case(args.case, [*args.sets, *sets]), folder, force=True)
+            if not args.measure_only:
+                run_case(load_case(args.case, [*args.sets, *sets]), folder, force=True)
             summary = read_run(label, folder).summary
             times[label].append(summary["wall_time_s"])
-            last[label] = (result.status, summary.get("adaptive", {}).get("accepted", summary["steps"]),
-                           summary.get("adaptive", {}).get("rejected", 0), folder)
-            print(f"{label} #{i}: {result.status}, {summary['wall_time_s']:.3g} s", file=sys.stderr)
-    print("| run | status | steps (rejected) | median wall time (s) | wall times (s) | L∞ error | peak error |")
-    print("|---|---|---|---|---|---|---|")
+            adaptive = summary.get("adaptive", {})
+            last[label] = (summary["status"], adaptive.get("accepted", summary["steps"]), adaptive.get("rejected", 0),
+                           adaptive.get("dt_range", [summary["dt"]] * 2), folder)
+            print(f"{label} #{i}: {summary['status']}, {summary['wall_time_s']:.3g} s", file=sys.stderr)
+    print("| run | status | steps (rejected) | Δt (s) | median wall time (s) | wall times (s) | L∞ error | peak error |")
+    print("|---|---|---|---|---|---|---|---|")
     for label, _ in runs:
-        status, steps, rejected, folder = last[label]
-        linf, peak = errors(folder, reference, probes) if status == "ok" else (float("nan"), float("nan"))
-        print(f"| `{label}` | {status} | {steps} ({rejected}) | {statistics.median(times[label]):.3g} | "
+        status, steps, rejected, (small, large), folder = last[label]
+        linf, peak = errors(folder, reference, probes, args.after) if status == "ok" else (float("nan"),) * 2
+        dt = f"{small:.3g}" if small == large else f"{small:.3g} … {large:.3g}"
+        print(f"| `{label}` | {status} | {steps} ({rejected}) | {dt} | {statistics.median(times[label]):.3g} | "
               f"{', '.join(f'{t:.3g}' for t in times[label])} | {100 * linf:.3g} % | {100 * peak:.3g} % |")
     return 0
 

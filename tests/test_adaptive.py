@@ -10,13 +10,16 @@ from types import SimpleNamespace
 import attrs
 import numpy as np
 import pytest
-from runs import assert_resume_is_bit_identical, run_cli
+from runs import CASES, assert_resume_is_bit_identical, run_cli
 
+from multilayer.case.casefile import load_case
 from multilayer.case.model import TimeSpec
 from multilayer.coupling.clock import Adaptive
 from multilayer.functions.loads import CosinePulse, SinePressure, TablePressure
 from multilayer.numerics.stepsize import Controller, local_error, predictor
 from multilayer.numerics.timescheme import named
+from multilayer.runner.loop import run_case
+from multilayer.runner.progress import ProgressBar
 
 SMALL = ("mesh.nz=12", "mesh.nr=3", "time.end=0.004", "time.dt=1e-6")
 MONOLITHIC = 'coupler={model="monolithic",scheme="crank-nicolson"}'
@@ -346,3 +349,20 @@ def test_per_unit_step_adaptive_runs_close_the_ledger_and_resume_bit_identically
     assert_resume_is_bit_identical(tmp_path / "resume", "pulse-koiter-thick", "mesh.nz=12", "mesh.nr=3",
                                    "time.dt=1e-6", MONOLITHIC, "time.tolerance=1e-3", PER_UNIT_STEP,
                                    "time.output_interval=1e-3", every=10, half=0.002, end=0.004)
+
+
+def test_the_progress_bar_counts_simulated_time(tmp_path):
+    """The bar's total is ``time.end`` in seconds and it stands at each step's t: an adaptive run, whose number of
+    steps is not known ahead, fills it exactly (a bar of steps would end at an arbitrary fraction)."""
+    bar, seen = ProgressBar(0.002, enabled=True), []  # (on stderr, captured)
+
+    def progress(tally, row):
+        bar(tally, row)
+        seen.append((bar.bar.n, tally.t, tally.steps))
+
+    case = load_case(CASES / "pulse-koiter-thick.toml", [*SMALL[:2], "time.end=0.002", "time.dt=1e-6", MONOLITHIC,
+                                                         "time.tolerance=1e-3"])
+    assert run_case(case, tmp_path / "run", progress=progress).status == "ok"
+    assert bar.bar.total == 0.002 and all(n == pytest.approx(t, rel=1e-12) for n, t, _ in seen)
+    assert seen[-1][0] == pytest.approx(0.002, rel=1e-12)
+    assert seen[-1][2] > 50  # many more steps than the 0.002 s the bar counts

@@ -5,7 +5,7 @@ import pytest
 from fluid_steps import BE, given, setup_fluid
 
 from multilayer.fluid.contract import Domain, Interface
-from multilayer.numerics.timescheme import named, schemes
+from multilayer.numerics.timescheme import stage_schemes
 from multilayer_plugins.channel import NavierStokes, forms
 from multilayer_plugins.channel.ledger import end_fluxes, fluid_kinetic
 from multilayer_plugins.channel.step import Solution
@@ -42,9 +42,9 @@ def test_quadrature_matches_scikit_fem():
     assert -fields.J_out * float(step.ends.loads["outlet"] @ u) == pytest.approx(q_out, rel=1e-12)
 
 
-@pytest.mark.parametrize("scheme", sorted(schemes()))  # every registered scheme
+@pytest.mark.parametrize("scheme", sorted(stage_schemes()))  # every stage of every registered scheme
 def test_fluid_identity_closes_and_detects_a_wrong_term_or_a_wrong_solve(scheme):
-    fluid, step, system, eta_old, eta_new, rng = moving_step(scheme=named(scheme))
+    fluid, step, system, eta_old, eta_new, rng = moving_step(scheme=stage_schemes()[scheme])
     solution = fluid.solve(system)
     terms = fluid.identity(system, solution, eta_old, eta_new)
     assert abs(terms["a2.residual"]) <= 1e-12 * terms["a2.scale"]

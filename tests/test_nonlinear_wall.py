@@ -89,9 +89,11 @@ COUPLERS = [
     (SOLID, {"model": "structure-only", "scheme": "backward-euler"}, {}),
     (SOLID, {"model": "structure-only", "scheme": "crank-nicolson"}, {}),
     (SOLID, {"model": "structure-only", "scheme": "bdf2"}, {}),
+    (SOLID, {"model": "structure-only", "scheme": "tr-bdf2"}, {}),
     (FLUID, {"model": "monolithic", "scheme": "backward-euler"}, {}),
     (FLUID, {"model": "monolithic", "scheme": "crank-nicolson"}, {}),
     (FLUID, {"model": "monolithic", "scheme": "bdf2"}, {}),
+    (FLUID, {"model": "monolithic", "scheme": "tr-bdf2"}, {}),
     # the paper's Robin term loses volume through the wall at this Δt (docs/theory.md, "Volume"): not the point here
     (FLUID, {"model": "kinematic-splitting", "robin": "inertia"}, {"solver": {"volume_margin": 1e9}}),
     (FLUID, {"model": "kinematic-splitting", "robin": "inertia", "scheme": "crank-nicolson", "beta": 1.0},

@@ -5,7 +5,8 @@ The θ-method of ``tests/theta_scheme.py`` is registered by hand, with no edit i
 its ledger closes; its order is 1 for θ ≠ ½ (a wall mode against its exact solution, and a coupled
 pulse against itself at halved steps); at θ = ½ and θ = 1 its weights are Crank–Nicolson's and
 backward Euler's, and where its choices (its geometry at the θ-point) coincide with theirs it
-computes the same bytes.  A two-stage scheme is refused by every built-in coupler for its stages.
+computes the same bytes.  A multi-stage scheme (TR-BDF2) is refused by the couplers whose steps do not go
+through the clock, for its stages, and BDF2's three levels by the paper's splitting alone.
 """
 
 import csv
@@ -70,7 +71,7 @@ def test_the_theta_method_closes_its_identity_and_takes_the_weights_of_its_ends(
     xs = [np.array([1.0, -2.0]), np.array([0.3, 0.7])]
     assert abs(S.difference(xs) @ M @ S.average(xs) - (S.stored(q, xs) - S.before(q, xs) + S.numerical(q, xs))) < 1e-13
     assert S.numerical(q, xs) >= 0.0 and S.order == (2 if value == 0.5 else 1) and S.parameters == {"theta": value}
-    assert S.geometry_position == value and S.stages[0].theta == value
+    assert S.geometry_position == value and S.stages[0].scheme.theta == value
     end = {0.5: named("crank-nicolson"), 1.0: named("backward-euler")}.get(value)
     if end is not None:
         assert (S.alpha, S.beta, S.old_levels, S.load_window(0.1, 0.3)) == (end.alpha, end.beta, end.old_levels,
@@ -92,7 +93,7 @@ def test_a_scheme_is_validated_by_name_and_by_its_parameters():
     assert found == ["coupler.scheme.theta = 0.3: expected a number >= 0.5 and <= 1.0 (from --set)"], found
     found = problems('coupler.scheme="crank-nicholson"')
     assert found == ["coupler.scheme = 'crank-nicholson': expected one of 'backward-euler', 'bdf2', 'crank-nicolson', "
-                     "'theta', 'two-stage'; did you mean 'crank-nicolson'? (from --set)"], found
+                     "'theta', 'tr-bdf2'; did you mean 'crank-nicolson'? (from --set)"], found
     found = problems('coupler.scheme={kind="thetta",theta=0.7}')
     assert len(found) == 1 and "did you mean 'theta'?" in found[0], found
     found = problems('coupler.scheme={theta=0.7}')
@@ -100,30 +101,38 @@ def test_a_scheme_is_validated_by_name_and_by_its_parameters():
     # installed only: the test's scheme is unknown without its module
     assert problems(f"coupler.scheme={theta(0.75)}", registry=Registry.load()) == [
         "coupler.scheme = {'kind': 'theta', 'theta': 0.75}: expected one of 'backward-euler', 'bdf2', "
-        "'crank-nicolson' (from --set)"]
+        "'crank-nicolson', 'tr-bdf2' (from --set)"]
 
 
-@pytest.mark.parametrize("coupler", ["kinematic-splitting", "monolithic", "dirichlet-neumann-implicit",
-                                     "dirichlet-neumann-explicit", "fluid-only", "structure-only"])
+@pytest.mark.parametrize("coupler", ["kinematic-splitting", "kinematic-splitting-inertia", "monolithic",
+                                     "dirichlet-neumann-implicit", "dirichlet-neumann-explicit", "fluid-only",
+                                     "structure-only"])
 def test_a_coupler_refuses_a_scheme_by_its_capabilities(coupler):
-    """Two stages: refused by every built-in coupler, each naming the schemes it takes; BDF2's three levels by
-    the splitting alone."""
+    """Two stages (TR-BDF2): taken by the couplers whose steps go through the clock, which steps the stages
+    (``Coupler.multistage``), refused by Dirichlet–Neumann's, each naming the schemes it takes; a stage of three
+    levels (BDF2's, TR-BDF2's second) by the paper's splitting alone (``robin = "inertia"``)."""
     case = {"fluid-only": "prescribed-wall", "structure-only": "membrane-mode"}.get(coupler, "pulse-koiter")
-    found = problems(f"coupler.model={coupler}", 'coupler.scheme="two-stage"', case=case)
-    assert len(found) == 1 and found[0].startswith("coupler.scheme = 'two-stage': two-stage has 2 stages a step"), found
-    takes = "'backward-euler' or 'crank-nicolson' or 'theta'" if coupler == "kinematic-splitting" else \
-        "'backward-euler' or 'bdf2' or 'crank-nicolson' or 'theta'"
-    assert f"{coupler} takes {takes}" in found[0], found
-    bdf2 = problems(f"coupler.model={coupler}", 'coupler.scheme="bdf2"', case=case)
-    assert (bdf2 != []) == (coupler == "kinematic-splitting"), bdf2
-    assert not bdf2 or "bdf2 has 3 time levels" in bdf2[0]
+    model, *robin = coupler.split("-inertia")
+    sets = (f"coupler.model={model}", *(['coupler.robin="inertia"'] if robin else []))
+    found = problems(*sets, 'coupler.scheme="tr-bdf2"', case=case)
+    bdf2 = problems(*sets, 'coupler.scheme="bdf2"', case=case)
+    if coupler.startswith("dirichlet-neumann"):
+        assert len(found) == 1 and found[0].startswith("coupler.scheme = 'tr-bdf2': tr-bdf2 has 2 stages a step"), found
+        assert f"{model} takes 'backward-euler' or 'bdf2' or 'crank-nicolson' or 'theta'" in found[0], found
+    elif robin:
+        assert len(found) == 1 and found[0].startswith(
+            "coupler.scheme = 'tr-bdf2': tr-bdf2 has a stage of 3 time levels"), found
+        assert f"{model} takes 'backward-euler' or 'crank-nicolson' or 'theta'" in found[0], found
+        assert len(bdf2) == 1 and "bdf2 has a stage of 3 time levels" in bdf2[0], bdf2
+    else:
+        assert found == [] and bdf2 == [], (found, bdf2)
 
 
 def test_a_scheme_without_an_error_estimate_takes_no_adaptive_steps():
     found = problems(f"coupler={{model=\"monolithic\",scheme={theta(0.75)}}}", "time.tolerance=1e-3")
     assert found == ["coupler.model = 'monolithic': time.tolerance = 0.001 asks for adaptive steps, which monolithic "
                      "with scheme 'theta' does not take (no error estimate: theta is first order); it takes them with "
-                     "scheme = 'bdf2' or 'crank-nicolson', or remove time.tolerance (from --set)"], found
+                     "scheme = 'bdf2' or 'crank-nicolson' or 'tr-bdf2', or remove time.tolerance (from --set)"], found
 
 
 #: every coupler, on a case it runs, with what it needs

@@ -19,7 +19,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from multilayer.numerics.timescheme import Quadratic, Stage, TimeScheme
+from multilayer.numerics.timescheme import Quadratic, TimeScheme
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import Param, SchemePlugin
 
@@ -51,31 +51,9 @@ class Theta(TimeScheme):
         return (2.0 * self.theta - 1.0) * q(xs[0] - xs[1])
 
 
-@attrs.frozen
-class TwoStage(TimeScheme):
-    """TR-BDF2's stages (γ = 2 − √2): the trapezoidal rule to tⁿ + γΔt, then BDF2 through xⁿ, x^{n+γ} to x^{n+1}.
-
-    Registered for its refusal: every built-in coupler steps one stage a step.
-    """
-
-    name: ClassVar[str] = "two-stage"
-    order: ClassVar[int] = 2
-    alpha: ClassVar[tuple[float, ...]] = (1.0, -1.0)
-    beta: ClassVar[tuple[float, ...]] = (1.0, 0.0)
-
-    @property
-    def stages(self) -> tuple[Stage, ...]:
-        g = 2.0 - 2.0 ** 0.5
-        w = (1.0 - g) / g  # the BDF2 stage's step over the trapezoidal one's
-        bdf2 = ((1.0 + 2.0 * w) / (1.0 + w), -(1.0 + w), w * w / (1.0 + w))  # per its own step (1 − γ)Δt
-        return (Stage((1.0 / g, -1.0 / g), (0.5, 0.5), g),
-                Stage(tuple(a / (1.0 - g) for a in bdf2), (1.0, 0.0, 0.0), 1.0))
-
-
 @hookimpl
 def multilayer_schemes():
     return [SchemePlugin(name="theta", factory=Theta,
                          params=(Param("theta", "θ", "1", default=1.0, ge=0.5, le=1.0,
                                        doc="where the operator is evaluated: x̄ = θx^{n+1} + (1 − θ)xⁿ"),),
-                         doc="The θ-method (a test's plugin): θ = 1 backward Euler's weights, ½ Crank–Nicolson's."),
-            SchemePlugin(name="two-stage", factory=TwoStage, doc="Two stages a step (a test's plugin).")]
+                         doc="The θ-method (a test's plugin): θ = 1 backward Euler's weights, ½ Crank–Nicolson's.")]

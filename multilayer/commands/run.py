@@ -113,13 +113,13 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
     bar = None
     try:  # loop.run_case, progress.ProgressBar: looked up at each run (tests replace them)
         if case is not None:
-            bar = progress.ProgressBar(case.time.steps, case.time.end, enabled=None if not quiet else False)
+            bar = progress.ProgressBar(case.time.end, enabled=None if not quiet else False)
             result = loop.run_case(case, out, registry, checkpoint_every=checkpoint_every, progress=bar,
                                    **({"force": True} if force else {}))
         else:
             saved = checkpoint.load(out, registry, until)
-            bar = progress.ProgressBar(saved.case.time.steps, saved.case.time.end, saved.tally.steps,
-                                       enabled=None if not quiet else False)
+            bar = progress.ProgressBar(saved.case.time.end, saved.tally.t, enabled=None if not quiet else False,
+                                       step=saved.tally.steps)
             result = loop.resume_run(out, until, registry, checkpoint_every=checkpoint_every, progress=bar)
     except (ResultsError, CheckpointError) as exc:
         print(f"{'run' if case is not None else 'resume'}: {exc}", file=sys.stderr)

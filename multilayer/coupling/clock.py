@@ -95,13 +95,71 @@ Advance = Callable[[State, Window], tuple[State, StepReport]]
 
 
 def march(setup: Setup, scheme: TimeScheme, state: State, advance: Advance) -> Iterator[tuple[State, StepReport]]:
-    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance."""
+    """The accepted steps from ``state`` to the case's end: fixed Δt, or :class:`Adaptive` with a tolerance.
+
+    A step of a multi-stage scheme is its stages, each an ``advance`` with the stage's scheme over its
+    sub-step (:func:`step`).
+    """
     if not setup.case.time.adaptive:
         for n, t0, t1 in setup.windows(state.n):
-            state, report = advance(state, Window(n, t0, t1, setup.dt, scheme))
-            yield state, attrs.evolve(report, alpha=scheme.alpha)
+            state, report = step(advance, state, Window(n, t0, t1, setup.dt, scheme))
+            yield state, report
         return
     yield from Adaptive(setup, scheme).march(state, advance)
+
+
+def step(advance: Advance, state: State, window: Window, integrating: bool = False) -> tuple[State, StepReport]:
+    """One step of ``window.scheme`` from ``state``: its stages one after the other, the step's state and report.
+
+    A single-stage scheme is one ``advance``.  A multi-stage scheme's stage k is an ``advance`` from the
+    stage before's state with the stage's scheme over its sub-step (:meth:`TimeScheme.substeps
+    <multilayer.numerics.timescheme.TimeScheme.substeps>`), so it reads, along the chain of states, the
+    step's earlier stages and then the old levels; the step's state is the last stage's with the step's
+    old levels behind it (the stages' values belong to the step alone), its report the stages'
+    (:func:`merged`).  ``integrating``: each stage integrates the fluid velocity's X by its own rule
+    (:func:`integrate`), for the error estimate of adaptive steps.
+    """
+    substeps = window.scheme.substeps(window.t0, window.t1, window.dt)
+    if len(substeps) == 1:
+        new, report = advance(state, window)
+        return (integrate(state, new, window) if integrating else new), attrs.evolve(report, alpha=window.scheme.alpha)
+    parts, current = [], state
+    for scheme, t0, t1, dt in substeps:
+        sub = Window(window.n, t0, t1, dt, scheme)
+        new, report = advance(current, sub)
+        if integrating:
+            new = integrate(current, new, sub)
+        parts.append((new, attrs.evolve(report, alpha=scheme.alpha)))
+        current = new
+    new = attrs.evolve(current, previous=state.trimmed(window.scheme.old_levels - 1))
+    return new, merged(parts, window.scheme.alpha)
+
+
+def merged(parts: list[tuple[State, StepReport]], alpha: tuple[float, ...]) -> StepReport:
+    """The report of a step from its stages' (state, report), in order.
+
+    The stored energy is the last stage's; work and dissipation are the stages' summed by column, so the
+    ledger closes over the step when every stage's identity starts from what the stage before stored
+    (a multi-stage scheme's stages chain their stored energies); the diagnostics are the last stage's
+    (its ends' fluxes and pressures, at the step's end), each ``*relative_residual*`` column the largest
+    of the stages'.  The stages themselves stay in ``stages``: the volume ledger closes each.
+    """
+    reports = [r for _, r in parts]
+
+    def summed(group: str) -> dict[str, float]:
+        out: dict[str, float] = {}
+        for r in reports:
+            for key, value in getattr(r, group).items():
+                out[key] = out.get(key, 0.0) + value
+        return out
+
+    diagnostics = dict(reports[-1].diagnostics)
+    for r in reports[:-1]:
+        for key, value in r.diagnostics.items():
+            if "relative_residual" in key:
+                diagnostics[key] = max(diagnostics.get(key, 0.0), value)
+    return StepReport(dict(reports[-1].stored), summed("work"), summed("dissipation"), diagnostics, alpha,
+                      tuple(parts))
 
 
 def fields(state: State) -> dict[str, np.ndarray]:
@@ -262,8 +320,7 @@ class Adaptive:
         while state.t < self.end * (1.0 - 1e-12):
             window = self.window(state, record["dt"])
             counted = self.factorizations()
-            new, report = advance(state, window)
-            new = integrate(state, new, window)
+            new, report = step(advance, state, window, integrating=True)
             if record["last"] and (window.dt != record["last"]  # BDF2: a new ratio at the same Δt changes α₀ too
                                    or window.scheme.alpha != self.scheme.with_ratio(window.scheme.previous).alpha):
                 record["refactorizations"] += self.factorizations() - counted
@@ -308,7 +365,7 @@ class Adaptive:
                                              self.size(x, old_fields.get(name, 0.0 * x), new.t, window.dt))
             landed = float(new.t == self.output_time(state.t))
             state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
-            yield state, attrs.evolve(report, alpha=window.scheme.alpha, diagnostics={
+            yield state, attrs.evolve(report, diagnostics={
                 **report.diagnostics, "dt": window.dt, "error.local": 0.0 if err is None else err, "landed": landed,
                 "error.next": ahead, **{f"error.{name}": (errors or {}).get(name, 0.0) for name in FIELDS}})
 

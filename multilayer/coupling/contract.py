@@ -30,7 +30,8 @@ class StepReport:
     ``diagnostics`` are extra columns (e.g. each sub-step's own residual).
     ``alpha`` are the weights of the step's difference quotient,
     Σ α_k x^{n+1−k} = Δt x̄' (newest level first): the volume ledger
-    balances the lumen's volume in that form (theory §7, "Volume").
+    balances the lumen's volume in that form (theory §7, "Volume"), stage by stage for a
+    multi-stage scheme (``stages``).
     """
 
     stored: Mapping[str, float] = attrs.field(factory=dict)
@@ -38,6 +39,13 @@ class StepReport:
     dissipation: Mapping[str, float] = attrs.field(factory=dict)
     diagnostics: Mapping[str, float] = attrs.field(factory=dict)
     alpha: tuple[float, ...] = (1.0, -1.0)
+    #: a multi-stage scheme's step: each stage's new state and report, in order (empty for a single stage;
+    #: :func:`multilayer.coupling.clock.merged`)
+    stages: tuple[tuple[State, StepReport], ...] = ()
+
+    def parts(self, new: State) -> tuple[tuple[State, StepReport], ...]:
+        """(state, report) of each stage of the step that made ``new``: the step itself when it has one stage."""
+        return self.stages or ((new, self),)
 
 
 class SchemeFailure(Exception):
@@ -59,6 +67,10 @@ class Coupler(ABC):
     #: (:attr:`~multilayer.numerics.timescheme.TimeScheme.estimates_error`): its steps go through
     #: :func:`multilayer.coupling.clock.march`
     adaptive: ClassVar[bool] = False
+    #: True when its steps go through :func:`multilayer.coupling.clock.march`, which steps a multi-stage scheme
+    #: (:attr:`~multilayer.numerics.timescheme.TimeScheme.stages`) stage by stage, each stage one single-stage
+    #: step of the coupler's with the stage's scheme over its sub-step
+    multistage: ClassVar[bool] = False
 
     def __init__(self, scheme: TimeScheme | str = "backward-euler"):
         #: the time scheme (a plugin): the case's ``coupler.scheme``, built (a name is looked up among the
@@ -69,11 +81,12 @@ class Coupler(ABC):
         """Why this coupler cannot step with ``scheme`` (empty when it can), from the scheme's capabilities.
 
         The case validator reports each at ``coupler.scheme``, with the registered schemes the coupler
-        does take.  The built-in couplers step one linear multistep rule per step: a multi-stage scheme
-        (:attr:`~multilayer.numerics.timescheme.TimeScheme.stages`) needs a coupler that loops over its stages.
+        does take.  A coupler steps one single-stage rule per step; a multi-stage scheme
+        (:attr:`~multilayer.numerics.timescheme.TimeScheme.stages`) only when its steps go through the clock,
+        which steps the stages (:attr:`multistage`).
         """
         stages = len(scheme.stages)
-        if stages == 1:
+        if stages == 1 or self.multistage:
             return []
         name = getattr(self, "name", type(self).__name__)
         return [f"{scheme.name} has {stages} stages a step, and {name} steps one linear multistep stage a step"]

@@ -191,13 +191,24 @@ class Prediction:
 
     def identity_levels(self, state, eta_new: np.ndarray, axial: tuple | None) -> tuple:
         """(η at tⁿ, η at tⁿ⁺¹, the axial pair) the fluid's kinetic energy is measured on in the step's identity:
-        the fluid's own levels where it has them, else the wall's (``state.eta``, ``eta_new``, ``axial``)."""
-        eta = self.levels.get(FLUID_ETA[0], (state.eta, eta_new))
+        the fluid's own levels where it has them, else the wall's (``state.eta``, ``eta_new``, ``axial``) — at
+        tⁿ the fluid's own level where ``state`` has one, the domain its energy was measured on last (a stage
+        after a Crank–Nicolson stage: :meth:`carried`)."""
+        old, old_z = fluid_domain(state)
+        eta = self.levels.get(FLUID_ETA[0], (old, eta_new))
+        if axial is not None and FLUID_ETA[1] in state.extra:
+            axial = (old_z, axial[1])
         return (*eta, self.levels.get(FLUID_ETA[1], axial))
 
     def extra(self) -> dict[str, np.ndarray]:
         """The fluid's new levels, for the next state's ``extra``."""
         return {key: new for key, (_, new) in self.levels.items()}
+
+    def carried(self, extra: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The next state's ``extra`` from the old state's: the fluid's own new levels where this step has them,
+        none where its fluid lives on the wall's levels, so that the next step measures the fluid where this one
+        left it (the stages of TR-BDF2: a Crank–Nicolson stage on its own domains, a BDF2 stage on the wall's)."""
+        return {**{k: v for k, v in extra.items() if k not in FLUID_ETA}, **self.extra()}
 
 
 #: the ``State.extra`` entries of the fluid's own domain (monolithic and Dirichlet–Neumann under Crank–Nicolson, the

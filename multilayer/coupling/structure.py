@@ -29,6 +29,7 @@ A linear wall takes the same loop's one correction: the back-substitution above.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping, Sequence
 
 import attrs
@@ -93,9 +94,23 @@ class StructureStep:
         self.dt = dt
         self.fluid_line = fluid_line
         self._stats, self._backend, self._reuse = stats, backend, reuse
-        self._solver = None  # factorized at the first step: a monolithic solve uses only matrix() and rhs()
-        self._solver_dt = dt  # the Δt of the factorized matrix
-        self._newton_solver: ReusingSolver | None = None  # a nonlinear wall's: made at its first step
+        # what the steps of every scheme :meth:`using` this one share: the factors of the last matrix and its key
+        # (factorized at the first step: a monolithic solve uses only matrix() and rhs()), a nonlinear wall's
+        # solver (made at its first step)
+        self._shared: dict = {"key": None, "factors": None, "newton": None}
+
+    def using(self, scheme: TimeScheme) -> StructureStep:
+        """This wall step with ``scheme`` (a stage's), its factors shared: a step whose matrix has the same
+        coefficients (:meth:`matrix_key`) is not factorized again, as TR-BDF2's two stages."""
+        other = copy.copy(self)
+        other.scheme = scheme
+        return other
+
+    def matrix_key(self, dt: float) -> tuple[float, float]:
+        """The coefficients of M and K in :meth:`matrix` for Δt = ``dt``, (α₀/β₀)/Δt and β₀Δt/α₀, to 12 digits
+        (C's is 1): two steps with the same key have the same matrix, to round-off."""
+        s = self.scheme
+        return float(f"{s.inertia / dt:.12g}"), float(f"{s.displacement_gain(dt):.12g}")
 
     def matrix(self, dt: float | None = None):
         """(α₀/β₀) M/Δt + C + (β₀Δt/α₀) K in the wall's numbering (every DOF), for Δt = ``dt`` (default: the run's)."""
@@ -149,9 +164,9 @@ class StructureStep:
         return mean
 
     def _nonlinear_solver(self) -> ReusingSolver:
-        if self._newton_solver is None:
-            self._newton_solver = ReusingSolver(self._stats, self._backend, self._reuse)
-        return self._newton_solver
+        if self._shared["newton"] is None:
+            self._shared["newton"] = ReusingSolver(self._stats, self._backend, self._reuse)
+        return self._shared["newton"]
 
     # -- the nonlinear step: its residual and tangent ----------------------------------
     def levels(self, states: Sequence[State], mean: np.ndarray, dt: float) -> list[np.ndarray]:
@@ -212,12 +227,13 @@ class StructureStep:
         return out
 
     def _factors(self, dt: float):
-        """The factorized matrix of Δt = ``dt``: factorized again when Δt changes."""
-        if self._solver is None or self._solver_dt != dt:
+        """The factorized matrix of Δt = ``dt``: factorized again when its coefficients change (:meth:`matrix_key`)."""
+        key = self.matrix_key(dt)
+        if self._shared["factors"] is None or self._shared["key"] != key:
             f = self.stack.free
-            self._solver = factorize(self.matrix(dt).tocsr()[f][:, f], self._stats, self._backend)
-            self._solver_dt = dt
-        return self._solver
+            self._shared["factors"] = factorize(self.matrix(dt).tocsr()[f][:, f], self._stats, self._backend)
+            self._shared["key"] = key
+        return self._shared["factors"]
 
     def finish(self, states: Sequence[State], mean: np.ndarray, forces: Mapping[str, np.ndarray],
                dt: float | None = None, newton: NewtonResult | None = None) -> WallStep:

@@ -5,12 +5,16 @@ one module per scheme, ``multilayer_plugins/schemes/`` for the built-in ones, ea
 :class:`TimeScheme`.  The core and the couplers ask a scheme for what they need — its weights, its
 energy identity, its error estimate, where its geometry sits — and never for its name.
 
-A step is a sequence of **stages** (:attr:`TimeScheme.stages`), each a linear multistep rule with
-coefficients α (the difference quotient) and β (where the operator is evaluated), levels newest first:
+A step is a sequence of **stages** (:attr:`TimeScheme.stages`); each is a single-stage scheme, a linear
+multistep rule with coefficients α (the difference quotient) and β (where the operator is evaluated), levels
+newest first:
 
     Σ_k α_k x^{n+1−k} / Δt · M  +  A x̄  =  F̄,      x̄ = Σ_k β_k x^{n+1−k}.
 
-Backward Euler, Crank–Nicolson and BDF2 are single-stage: the scheme is its own stage.  Every
+Backward Euler, Crank–Nicolson and BDF2 are single-stage: the scheme is its own stage.  A multi-stage
+scheme (TR-BDF2) lists its stages, each a single-stage scheme over its own sub-step, and the clock steps
+them one after the other (:func:`multilayer.coupling.clock.march`): a coupler only ever steps a
+single-stage rule.  Every
 sub-problem of the project (a wall step, a fluid step, both at once) is solved for the *test-level*
 unknown x̄: the matrix is (α₀/β₀) M/Δt + A and only old levels move to the right-hand side.  For
 Crank–Nicolson x̄ is the midpoint value and the step is a backward-Euler step of Δt/2 followed by the
@@ -97,20 +101,20 @@ class LinearMultistep:
 
 
 @attrs.frozen
-class Stage(LinearMultistep):
-    """One stage of a step: a linear multistep rule over the stage's levels, ending at tⁿ + ``fraction``·Δt.
+class Stage:
+    """One stage of a step: a single-stage scheme stepped over a sub-step that ends at tⁿ + ``fraction``·Δt.
 
-    A stage's levels are, newest first, its own new value, the values of the step's earlier stages
-    (latest first), then the step's old levels xⁿ, x^{n−1}, ...; α is scaled to the whole step's Δt
-    (Σα_k x_k/Δt is the stage's derivative).  A single-stage scheme has one stage, itself, with
-    ``fraction`` = 1.
+    The stage starts where the stage before it ended (tⁿ for the first) and is stepped as any single-stage
+    scheme is, with its sub-step's Δt; its levels are read along the chain of states, newest first: its own
+    new value, the values of the step's earlier stages (latest first), then the step's old levels xⁿ,
+    x^{n−1}, ...  Its ``ratio`` is its sub-step over the distance between its two newest old levels (that is
+    what its extrapolations see).  A single-stage scheme has one stage, itself, with ``fraction`` = 1.
 
-    >>> Stage((1.0, -1.0), (0.5, 0.5)).theta
-    0.5
+    >>> [(s.scheme.name, s.fraction) for s in named("bdf2").stages]
+    [('bdf2', 1.0)]
     """
 
-    alpha: tuple[float, ...] = attrs.field(converter=tuple)
-    beta: tuple[float, ...] = attrs.field(converter=tuple)
+    scheme: TimeScheme
     fraction: float = 1.0
 
 
@@ -125,6 +129,11 @@ class TimeScheme(LinearMultistep):
     :attr:`estimates_error`), what a change of step size means to it (:meth:`with_ratio`,
     :attr:`max_ratio`), its load window and extrapolation.  A subclass's own fields are its
     parameters (:attr:`parameters`); ``ratio`` and ``previous`` are the step's.
+
+    A multi-stage scheme defines :attr:`stages` instead (single-stage schemes, each over its sub-step),
+    its :meth:`stored` (the energy its last stage stores, which the next step's first stage starts
+    from), ``alpha`` = (1, −1) (the step as a whole takes xⁿ to x^{n+1}: one-step) and its error
+    estimate; the couplers step its stages, never the scheme itself.
 
     Parameters
     ----------
@@ -151,15 +160,45 @@ class TimeScheme(LinearMultistep):
     #: stored energy depends on the step ratio may exceed it without instability
     adaptive_energy_note: ClassVar[str] = ""
 
+    @property
+    def beta(self) -> tuple[float, ...]:
+        """A single-stage scheme's β (it defines its own); a multi-stage scheme has none, its stages do:
+
+        >>> named("tr-bdf2").beta
+        Traceback (most recent call last):
+        ...
+        AttributeError: tr-bdf2 takes 2 stages a step: step each stage, a single-stage scheme (TimeScheme.substeps)
+        """
+        raise AttributeError(f"{self.name} takes {len(self.stages)} stages a step: step each stage, a single-stage "
+                             f"scheme (TimeScheme.substeps)")
+
     # -- the step's stages -----------------------------------------------------------
     @property
     def stages(self) -> tuple[Stage, ...]:
-        """The stages of one step, in order: one (the scheme itself) for a single-stage scheme.
+        """The stages of one step, in order (:class:`Stage`): one, the scheme itself, for a single-stage scheme.
 
-        >>> [(s.alpha, s.beta, s.fraction) for s in named("bdf2").stages]
-        [((1.5, -2.0, 0.5), (1.0, 0.0, 0.0), 1.0)]
+        A multi-stage scheme overrides this; its stages are single-stage schemes, each with its own identity
+        (their stored energies chain: a stage's ``before`` is what the stage before it stored), and the
+        scheme's own :meth:`stored` is its last stage's, which the next step's first stage starts from.
         """
-        return (Stage(self.alpha, self.beta, 1.0),)
+        return (Stage(self, 1.0),)
+
+    def substeps(self, t0: float, t1: float, dt: float | None = None) -> list[tuple[TimeScheme, float, float, float]]:
+        """(stage scheme, its start, its end, its Δt) of each stage of the step [t0, t1] of Δt = ``dt`` (t1 − t0
+        by default), in order: the last ends at t1, a stage's Δt is its share of the step's, Δt itself for a
+        single stage (so that a matrix held per Δt is the same at every step).
+
+        >>> named("crank-nicolson").substeps(0.0, 0.1)
+        [(CrankNicolson(ratio=1.0, previous=1.0), 0.0, 0.1, 0.1)]
+        """
+        dt = t1 - t0 if dt is None else dt
+        out, start, done = [], t0, 0.0
+        for stage in self.stages:
+            end = t1 if stage.fraction == 1.0 else t0 + stage.fraction * (t1 - t0)
+            out.append((stage.scheme, start, end, dt if done == 0.0 and stage.fraction == 1.0
+                        else (stage.fraction - done) * dt))
+            start, done = end, stage.fraction
+        return out
 
     @property
     def parameters(self) -> dict[str, Any]:
@@ -272,7 +311,7 @@ def schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
     by default).
 
     >>> sorted(schemes())
-    ['backward-euler', 'bdf2', 'crank-nicolson']
+    ['backward-euler', 'bdf2', 'crank-nicolson', 'tr-bdf2']
     """
     registry = registry or _installed()
     out = {}
@@ -280,6 +319,21 @@ def schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
         record = registry.get("scheme", name).record
         if not any(p.required for p in record.params):
             out[name] = registry.build("scheme", name)
+    return out
+
+
+def stage_schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
+    """The single-stage scheme of every stage of every registered scheme that takes its parameters' defaults
+    (:func:`schemes`), by name: the scheme's own for a single-stage one, ``<name>[k]`` for a multi-stage one's
+    stage k — what a test of one step's identity runs over.
+
+    >>> sorted(stage_schemes())
+    ['backward-euler', 'bdf2', 'crank-nicolson', 'tr-bdf2[0]', 'tr-bdf2[1]']
+    """
+    out = {}
+    for name, scheme in schemes(registry).items():
+        stages = scheme.stages
+        out.update({name: scheme} if len(stages) == 1 else {f"{name}[{k}]": s.scheme for k, s in enumerate(stages)})
     return out
 
 

@@ -1,7 +1,7 @@
 """What a run shows while it goes and when it ends.
 
-A progress bar (tqdm) on stderr with the step, the simulated time, the
-estimated time left and the current ledger residual — only on a terminal,
+A progress bar (tqdm) on stderr whose total is the simulated time, with the
+step, the estimated time left and the current ledger residual — only on a terminal,
 and never with ``--quiet`` — and a short summary at the end.
 """
 
@@ -16,18 +16,27 @@ from multilayer.results.readouts import range_lines
 
 
 class ProgressBar:
-    """Called after every step with the run's tally and the step's row (see :func:`multilayer.runner.loop.run_case`)."""
+    """Called after every step with the run's tally and the step's row (see :func:`multilayer.runner.loop.run_case`).
 
-    def __init__(self, steps: int, end: float, start: int = 0, enabled: bool | None = None):
+    Its total is the simulated time, ``end`` seconds (from ``start``, a resumed run's, at its ``step``): it
+    moves with t, so the bar and its estimate of the time left mean the same with fixed steps and with steps
+    chosen by error, whose number is not known ahead.  The postfix holds the step and the ledger's residual.
+
+    >>> bar = ProgressBar(0.5, 0.1, enabled=False)
+    >>> bar.bar.total, bar.bar.n
+    (0.5, 0.1)
+    """
+
+    def __init__(self, end: float, start: float = 0.0, enabled: bool | None = None, step: int = 0):
         enabled = sys.stderr.isatty() if enabled is None else enabled
         self.end = end
-        self.bar = tqdm(total=steps, initial=start, unit="step", disable=not enabled, file=sys.stderr,
-                        dynamic_ncols=True, leave=False)
+        self.bar = tqdm(total=end, initial=start, unit="s", disable=not enabled, file=sys.stderr, dynamic_ncols=True,
+                        leave=False, postfix=f"step {step}",
+                        bar_format="{l_bar}{bar}| t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
 
     def __call__(self, tally, row) -> None:
-        self.bar.update(tally.steps - self.bar.n)
-        self.bar.set_postfix_str(f"t = {tally.t:.4g}/{self.end:.4g} s, ledger {row['energy.relative_residual']:.1e}",
-                                 refresh=False)
+        self.bar.set_postfix_str(f"step {tally.steps}, ledger {row['energy.relative_residual']:.1e}", refresh=False)
+        self.bar.update(min(tally.t, self.end) - self.bar.n)
 
     def close(self) -> None:
         self.bar.close()

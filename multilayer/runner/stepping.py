@@ -196,7 +196,7 @@ def iterate_steps(setup: Setup, coupler: Coupler, state: State, tally: Tally, pr
             terms = ledger.close(report.stored, tally.previous, report.work, report.dissipation)
             tally.previous = terms["energy.total"]
             if meter is not None:
-                terms.update(tally.volume.close(meter, new, report.alpha, report.diagnostics))
+                terms.update(tally.volume.close(meter, report.parts(new)))
             check_state(setup, new, {**terms, **report.diagnostics})
             tally.iterations.append(report.diagnostics.get("iterations", math.nan))
             t_out = time.perf_counter()

@@ -35,6 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 import skfem
 
+from multilayer.coupling.contract import StepReport
 from multilayer.coupling.kit import AXIAL
 from multilayer.fluid.contract import ENDS
 from multilayer.geometry.spaces import LineSpace
@@ -125,17 +126,35 @@ class VolumeLedger:
     moved: float = 0.0
     max_rel: float = 0.0  #: the largest step residual relative to the volume its step moved
 
-    def close(self, meter: LumenVolume, new: State, alpha: Sequence[float],
-              columns: Mapping[str, float]) -> dict[str, float]:
+    def close(self, meter: LumenVolume, parts: Sequence[tuple[State, StepReport]]) -> dict[str, float]:
         """The step's columns ``volume.fluid``, ``volume.residual``, ``volume.relative_residual``, ``volume.drift``.
 
-        The residual is Σ α_k V^{n+1−k} + Δt (Q̄_inlet + Q̄_outlet), α the
-        step's difference weights (``StepReport.alpha``: ΔV for a one-step
-        scheme), each V^{n+1−k} − Vⁿ formed by :meth:`LumenVolume.change`;
-        the older levels are ``new``'s (the oldest repeated, as the scheme
-        pads them).  ``columns`` holds the step's ``end.<end>.Q``; a closed
-        end passes nothing.
+        ``parts`` are the (new state, report) of each stage of the step (:meth:`StepReport.parts
+        <multilayer.coupling.contract.StepReport.parts>`: the step itself for a single-stage scheme).  A stage's
+        residual is Σ α_k V^{n+1−k} + Δt (Q̄_inlet + Q̄_outlet), α its difference weights
+        (``StepReport.alpha``: ΔV for a one-step rule), Δt its own, each V^{n+1−k} − Vⁿ formed by
+        :meth:`LumenVolume.change`; its older levels are its state's (the oldest repeated, as the scheme
+        pads them), its ``end.<end>.Q`` its report's diagnostics (a closed end passes nothing).  The step's
+        residual and the volume it moved are its stages' summed.
         """
+        residual = scale = 0.0
+        for new, report in parts:
+            stage_residual, stage_scale = self._stage(meter, new, report.alpha, report.diagnostics)
+            residual, scale = residual + stage_residual, scale + stage_scale
+        volume = meter.volume(*lumen(parts[-1][0]))
+        scale = max(scale, FLOOR * abs(volume))
+        self.steps += 1
+        self.drift += residual
+        self.moved += scale
+        relative = abs(residual) / scale if scale > 0.0 else 0.0
+        self.max_rel = max(self.max_rel, relative)
+        return {"volume.fluid": volume, "volume.residual": residual, "volume.relative_residual": relative,
+                "volume.drift": self.drift}
+
+    @staticmethod
+    def _stage(meter: LumenVolume, new: State, alpha: Sequence[float],
+               columns: Mapping[str, float]) -> tuple[float, float]:
+        """(residual, volume moved) of one stage: Σα_k V^{n+1−k} + Δt Σ_e Q̄_e, ½(|Σα_kV^{n+1−k}| + Δt Σ_e |Q̄_e|)."""
         states = new.history(len(alpha))
         old = states[1]
         eta_old, z_old = lumen(old)
@@ -146,17 +165,7 @@ class VolumeLedger:
                 eta, z = lumen(s)
                 change += a * meter.change(eta_old, eta, z_old, z)
         fluxes = [dt * float(columns.get(f"end.{end}.Q", 0.0)) for end in ENDS]
-        residual = change + sum(fluxes)
-        eta_new, z_new = lumen(new)
-        volume = meter.volume(eta_new, z_new)
-        scale = max(0.5 * (abs(change) + sum(abs(f) for f in fluxes)), FLOOR * abs(volume))
-        self.steps += 1
-        self.drift += residual
-        self.moved += scale
-        relative = abs(residual) / scale if scale > 0.0 else 0.0
-        self.max_rel = max(self.max_rel, relative)
-        return {"volume.fluid": volume, "volume.residual": residual, "volume.relative_residual": relative,
-                "volume.drift": self.drift}
+        return change + sum(fluxes), 0.5 * (abs(change) + sum(abs(f) for f in fluxes))
 
     @property
     def relative_drift(self) -> float:
