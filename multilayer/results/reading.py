@@ -214,11 +214,13 @@ def lumen_field(table: Mapping[str, np.ndarray], where: Path | str = "the table"
     columns = [c for c in table if c.startswith("z=")]
     if not (columns and len(table["t"])):
         return None
-    try:
-        z = np.array([float(c[2:]) for c in columns])
-    except ValueError:
-        raise ResultsError(f"{where} has a column {next(c for c in columns if not _is_number(c[2:]))!r}, "
-                           f"not z=<position>: not a table of a run") from None
+    positions = []
+    for column in columns:
+        try:
+            positions.append(float(column[2:]))
+        except ValueError:
+            raise ResultsError(f"{where} has a column {column!r}, not z=<position>: not a table of a run") from None
+    z = np.array(positions)
     order = np.argsort(z, kind="stable")
     return z[order], table["t"], np.column_stack([table[c] for c in columns])[:, order]
 
@@ -269,14 +271,6 @@ def lumen_eta(folder: Path, radius: float, part: str = "wall") -> tuple[np.ndarr
     if not rows:
         return None
     return z, np.array(times), np.array(rows)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def finite_rows(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
