@@ -290,6 +290,31 @@ def test_a_signal_whose_exception_is_swallowed_still_ends_the_command_with_its_c
     assert status(tmp_path / "out") == "ok"  # the command went on to its end, and still says it was terminated
 
 
+def test_a_signal_whose_exception_an_import_turns_into_another_ends_the_command_with_its_code(monkeypatch, capsys):
+    """A Cython or Pythran module whose initialization the signal's exception stops raises
+    ``ImportError: initialization failed`` instead (seen with SciPy's ``_ckdtree``): the signal still ends it."""
+    import multilayer.commands.main as main_module
+
+    def importing(argv):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1)
+        except BaseException:  # what an extension module's init does with an exception raised in it
+            raise ImportError("initialization failed") from None
+        return 0
+
+    monkeypatch.setattr(main_module, "main", importing)
+    assert multilayer.commands.cli(["run", "x.toml"]) == TERMINATED
+    assert capsys.readouterr().err == "multilayer: terminated (SIGTERM)\n"
+
+    def failing(argv):
+        raise ImportError("a plain failure, no signal")
+
+    monkeypatch.setattr(main_module, "main", failing)
+    with pytest.raises(ImportError, match="no signal"):  # without a signal, an exception is what it is
+        multilayer.commands.cli(["run", "x.toml"])
+
+
 def test_a_signal_held_back_is_raised_at_the_end_of_the_block_even_when_the_block_fails():
     handler = interrupts.CommandSignals()
     previous = handler.install()
