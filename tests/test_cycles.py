@@ -19,6 +19,7 @@ from multilayer.plugin.units import MMHG
 from multilayer.results import cycles, shear
 from multilayer.results.figures import plot_run
 from multilayer.results.reading import position_column
+from multilayer.runner import progress
 
 T = 0.8
 DT = T / 200
@@ -145,6 +146,14 @@ def test_the_carotid_over_two_beats_gives_its_cycle_summaries_and_wall_shear(tmp
     assert res.wss_lumen[2].shape == (2000, 21) and np.array_equal(res.wss_lumen[0], res.eta_lumen[0])
     assert {p.name for p in plot_run(tmp_path)} >= {"wss.png", "cycles.png"}
     assert json.loads((tmp_path / "summary.json").read_text())["cycles"] == block
+    # the run's closing lines: the last beat, its pressures in mmHg, its stroke volume and its change
+    assert result.cycles == block
+    line = progress.summary(result, 1.0, tmp_path).splitlines()[-2]
+    p = beats[1]["pressure"]["p_out"]
+    assert line.startswith("  cycle 2 (1–2 s): p_in ") and "end.outlet" not in line, line
+    assert f"p_out {p['systolic_mmHg']:.4g}/{p['diastolic_mmHg']:.4g} (mean {p['mean_mmHg']:.4g}) mmHg" in line
+    assert f"stroke volume {beats[1]['stroke_volume']:.4g} mL" in line
+    assert line.endswith(f"within {100 * beats[1]['max_change']:.2g} % of cycle 1"), line
 
 
 def test_a_run_in_memory_has_the_same_cycles_and_wall_shear_as_its_folder(tmp_path):

@@ -182,3 +182,29 @@ def _relative(now: float, before: float, scale: float) -> float:
         return 0.0
     return (now - before) / scale if scale > 0.0 else math.nan
 
+
+
+def last_cycle_line(block: Mapping | None) -> str | None:
+    """One line on the last complete cycle of a ``cycles`` block (:func:`summarize` with its period and units), for
+    a run's closing lines: each pressure's systolic/diastolic (mean) in mmHg, the stroke volume, and how far the
+    cycle is from the one before; None without a complete cycle.
+
+    >>> t = np.arange(1, 201) * 0.01
+    >>> p = (100 + 20 * np.sin(2 * np.pi * t)) * MMHG
+    >>> block = {"period": 1.0, "units": {"stroke_volume": "mL"},
+    ...          "cycles": summarize(t, 1.0, {"p_out": (6.0, p)}, inflow=1 + np.sin(2 * np.pi * t) + t / 20)}
+    >>> print(last_cycle_line(block))
+    cycle 2 (1–2 s): p_out 120/80 (mean 100) mmHg; stroke volume 1.075 mL; within 4.9 % of cycle 1
+    """
+    done = (block or {}).get("cycles") or []
+    if not done:
+        return None
+    last = done[-1]
+    parts = [f"{name} {p['systolic_mmHg']:.4g}/{p['diastolic_mmHg']:.4g} (mean {p['mean_mmHg']:.4g}) mmHg"
+             for name, p in last.get("pressure", {}).items() if "systolic_mmHg" in p and not name.startswith("end.")]
+    if "stroke_volume" in last:
+        parts.append(f"stroke volume {last['stroke_volume']:.4g} {block.get('units', {}).get('stroke_volume', '')}".rstrip())
+    if "max_change" in last:
+        parts.append(f"within {100 * last['max_change']:.2g} % of cycle {last['index']}")
+    head = f"cycle {last['index'] + 1} ({last['start']:.4g}–{last['end']:.4g} s)"
+    return f"{head}: {'; '.join(parts)}" if parts else head

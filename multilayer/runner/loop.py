@@ -93,6 +93,8 @@ class RunResult:
     signal: str = ""
     #: every probe's range over the run (summary.json ``probe_ranges``: CGS, pressures in mmHg too)
     ranges: dict = attrs.field(factory=dict)
+    #: the summary's ``cycles`` block (with a periodic load; None without)
+    cycles: dict | None = None
 
 
 class Interrupted(Exception):
@@ -340,12 +342,14 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     }
     signals.finishing = True
     try:
-        summary.update(_readouts(case, setup, results))
+        read = _readouts(case, setup, results)
+        summary.update(read)
         results.write_summary(summary)
     finally:
         results.release()
     return RunResult(status, reason, results.path, tally.steps, tally.max_rel, tally.t, dict(tally.peaks),
-                     tally.volume.relative_drift if tally.volume is not None else None, stopped_by, ranges)
+                     tally.volume.relative_drift if tally.volume is not None else None, stopped_by, ranges,
+                     read.get("cycles"))
 
 
 def _written_series(results: ResultsFolder | HeldResults) -> dict[str, np.ndarray]:

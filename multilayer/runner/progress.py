@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from multilayer.results.cycles import last_cycle_line
 from multilayer.results.readouts import range_lines
 
 
@@ -44,7 +45,8 @@ class ProgressBar:
 
 def summary(result, wall_time_s: float, folder: Path, checkpoint: bool = False) -> str:
     """A few lines: status, steps, wall time, ledger residuals (energy, volume), peak |η| per probe (in µm),
-    the pressures' ranges (mmHg, then dyn/cm²) and the flow rates' (mL/s in a tube), where the results are."""
+    the pressures' ranges (mmHg, then dyn/cm²) and the flow rates' (mL/s in a tube), the last complete cardiac cycle
+    (under a periodic load), where the results are."""
     volume = ""
     if result.volume_drift is not None:
         volume = f", volume to {result.volume_drift:.1e} of the volume moved"
@@ -55,6 +57,9 @@ def summary(result, wall_time_s: float, folder: Path, checkpoint: bool = False) 
     if result.peaks:
         lines.append("  peak |η|: " + ", ".join(f"{name} {1e4 * value:.4g} µm" for name, value in result.peaks.items()))
     lines += [f"  {line}" for line in range_lines(getattr(result, "ranges", None) or {})]
+    cycle = last_cycle_line(getattr(result, "cycles", None))
+    if cycle:
+        lines.append(f"  {cycle}")
     lines.append(f"  results in {folder}")
     if result.status == "interrupted" and checkpoint:
         lines.append(f"  resume with: multilayer resume {folder}")
