@@ -102,7 +102,7 @@ SCENE: dict[str, Any] = {
     "time": {"end": 1e-3, "dt": 1e-4},
     "fluid": {"model": "navier-stokes", "density": 1.0, "viscosity": 0.035},
     "coupler": {"model": "kinematic-splitting"},
-    "loads": {"inlet": {"kind": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
+    "loads": {"inlet": {"model": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
 }
 #: The coupler of the coupled scene for a nonlinear layer (the splitting's default wall impedance needs a linear
 #: wall): fluid and wall in one system, iterated by Newton's method.

@@ -21,7 +21,7 @@ from multilayer.numerics.linsolve import Reuse
 class Geometry:
     length: float  #: L (cm), channel length
     radius: float  #: R (cm), reference radius of the lumen
-    kind: str = "planar"  #: the geometry plugin (``[geometry] kind``): what the meridian plane stands for
+    model: str = "planar"  #: the geometry plugin (``[geometry] model``): what the meridian plane stands for
     params: Mapping[str, Any] = attrs.field(factory=dict, eq=False)  #: its own parameters
 
 

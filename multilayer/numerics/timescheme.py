@@ -40,7 +40,7 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from multilayer.plugin.records import Param
+from multilayer.plugin.records import MODEL, Param
 from multilayer.plugin.registry import Registry
 
 Quadratic = Callable[[np.ndarray], float]
@@ -288,7 +288,7 @@ def scheme_param(default: str = "backward-euler") -> Param:
     """The ``scheme`` parameter of a coupler: the name of a registered time scheme (or a table with its parameters)."""
     return Param("scheme", type=str, default=default, plugin="scheme",
                  doc="time discretization: a registered time scheme ('multilayer plugins' lists them), by name, "
-                     "or as a table {kind = name, ...its parameters}")
+                     "or as a table {model = name, ...its parameters}")
 
 
 @functools.cache
@@ -303,7 +303,7 @@ def named(name: str, registry: Registry | None = None, **params: Any) -> TimeSch
     >>> named("crank-nicolson").order, named("bdf2").levels
     (2, 3)
     """
-    return (registry or _installed()).build("scheme", {"kind": name, **params})
+    return (registry or _installed()).build("scheme", {MODEL: name, **params})
 
 
 def schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:

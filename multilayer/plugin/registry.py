@@ -28,7 +28,13 @@ import pluggy
 
 from multilayer.plugin import hookspecs
 from multilayer.plugin.interrupts import UserInterrupt
-from multilayer.plugin.records import PluginRecord, Registered
+from multilayer.plugin.records import (
+    MODEL,
+    OLD_MODEL,
+    PluginRecord,
+    Registered,
+    old_model_text,
+)
 
 HOOKS = {
     "layer": "multilayer_layers",
@@ -243,9 +249,10 @@ class Registry:
         return found
 
     def build(self, kind: str, spec: str | Mapping[str, Any]) -> Any:
-        """The plugin of ``kind`` that ``spec`` names, built: a name, or a table ``{kind = name, ...its
+        """The plugin of ``kind`` that ``spec`` names, built: a name, or a table ``{model = name, ...its
         parameters}`` (the parameters it leaves out take their defaults).  Checks nothing the case
-        validator checks; a name that is not registered is a KeyError (:meth:`get`).
+        validator checks; a name that is not registered is a KeyError (:meth:`get`), a table with the old
+        key ``kind`` a ValueError.
 
         >>> Registry.load().build("scheme", "crank-nicolson").order
         2
@@ -253,7 +260,9 @@ class Registry:
         if isinstance(spec, str):
             name, given = spec, {}
         else:
-            name, given = spec["kind"], {k: v for k, v in spec.items() if k != "kind"}
+            if OLD_MODEL in spec:
+                raise ValueError(f"{OLD_MODEL} = {spec[OLD_MODEL]!r}: " + "; ".join(old_model_text(spec)))
+            name, given = spec[MODEL], {k: v for k, v in spec.items() if k != MODEL}
         record = self.get(kind, name).record
         params = {p.name: p.default for p in record.params if not p.required}
         return record.factory(**{**params, **given})
@@ -289,16 +298,16 @@ def plugin_versions(case, registry: Registry) -> dict[str, dict[str, str]]:
              *(("layer", s.path, s.model) for s in case.layers)]
     if case.fluid is not None:
         specs.append(("fluid", case.fluid.path, case.fluid.model))
-    specs.append(("geometry", "geometry", case.geometry.kind))
+    specs.append(("geometry", "geometry", case.geometry.model))
     loads = case.resolved.get("loads") or {}
-    specs += [("boundary", f"loads.{end}", loads[end]["kind"]) for end in ("inlet", "outlet")
-              if isinstance(loads.get(end), dict) and "kind" in loads[end]]
+    specs += [("boundary", f"loads.{end}", loads[end][MODEL]) for end in ("inlet", "outlet")
+              if isinstance(loads.get(end), dict) and MODEL in loads[end]]
     record = registry.find("coupler", case.coupler.model)
     for param in record.record.params if record is not None else ():  # the plugins its parameters name
         value = case.coupler.params.get(param.name)
         if param.plugin is not None and value is not None:
             specs.append((param.plugin, f"{case.coupler.path}.{param.name}",
-                          value if isinstance(value, str) else value["kind"]))
+                          value if isinstance(value, str) else value[MODEL]))
     out = {}
     for kind, path, name in specs:
         reg = registry.find(kind, name)
