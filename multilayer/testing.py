@@ -487,7 +487,10 @@ def assert_layer_conforms(name: str, params: Mapping[str, Any] | None = None, re
                           workdir: Path | str | None = None) -> None:
     """:func:`check_layer`, raising ``AssertionError`` with one line per failed check.
 
-    >>> assert_layer_conforms("wave-membrane", checks=("schema", "build", "matrices", "essential-dofs"))
+    In a plugin package's tests (``tests/test_conformance.py`` runs it on the built-in layers)::
+
+        assert_layer_conforms("my-layer", plugins=[my_plugin_module])
+        assert_layer_conforms("wave-membrane", checks=("schema", "build", "matrices", "essential-dofs"))
     """
     failed = [r for r in check_layer(name, params, registry, plugins, checks, workdir) if not r.ok]
     if failed:

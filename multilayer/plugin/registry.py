@@ -155,9 +155,15 @@ class Registry:
 
     Examples
     --------
-    >>> reg = Registry.load()
-    >>> reg.get("layer", "wave-membrane").package
-    'multilayer'
+    >>> from multilayer.plugin.hookspecs import hookimpl
+    >>> from multilayer.plugin.records import GeometryPlugin
+    >>> class Geometries:  # a plugin registered by hand (Registry.load() adds the installed ones, entry points)
+    ...     @hookimpl
+    ...     def multilayer_geometries(self):
+    ...         return [GeometryPlugin(name="flat", factory=dict, doc="A stand-in.")]
+    >>> reg = Registry.load([Geometries()], entry_points=False)
+    >>> reg.names("geometry"), reg.get("geometry", "flat").record.doc, reg.names("layer")
+    (['flat'], 'A stand-in.', [])
     """
 
     def __init__(self, pm: pluggy.PluginManager, dists: dict[int, tuple[str, str]] | None = None,
@@ -254,8 +260,20 @@ class Registry:
         validator checks; a name that is not registered is a KeyError (:meth:`get`), a table with the old
         key ``kind`` a ValueError.
 
-        >>> Registry.load().build("scheme", "crank-nicolson").order
-        2
+        >>> from multilayer.plugin.hookspecs import hookimpl
+        >>> from multilayer.plugin.records import Param, SchemePlugin
+        >>> class Schemes:  # a stand-in plugin, whose "scheme" is the dict of its parameters
+        ...     @hookimpl
+        ...     def multilayer_schemes(self):
+        ...         return [SchemePlugin(name="theta", factory=dict, params=(Param("theta", unit="1", default=1.0),),
+        ...                              doc="The θ-method.")]
+        >>> reg = Registry.load([Schemes()], entry_points=False)
+        >>> reg.build("scheme", "theta"), reg.build("scheme", {"model": "theta", "theta": 0.5})
+        ({'theta': 1.0}, {'theta': 0.5})
+        >>> reg.build("scheme", {"kind": "theta"})
+        Traceback (most recent call last):
+        ...
+        ValueError: kind = 'theta': plugins are chosen by 'model', not 'kind'; write model = "theta"
         """
         if isinstance(spec, str):
             name, given = spec, {}
