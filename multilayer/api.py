@@ -102,16 +102,12 @@ def load_case(path: str | os.PathLike[str], overrides: Iterable[str] | Mapping[s
 
     Examples
     --------
-    >>> from pathlib import Path
-    >>> import multilayer
-    >>> cases = Path(multilayer.__file__).parents[1] / "cases"     # the bundled cases of a source checkout
-    >>> case = load_case(cases / "membrane-mode.toml", {"time.end": 0.001, "mesh.nz": 16})
-    >>> case.time.steps, case.mesh.nz
-    (50, 16)
-    >>> load_case(cases / "membrane-mode.toml", ["layers[0].tension=-1"])
-    Traceback (most recent call last):
-    ...
-    multilayer.plugin.problems.CaseError: layers[0].tension = -1: expected a number >= 0.0 (dyn/cm) (from --set)
+    In a source checkout, with the installed plugins (``tests/test_api.py`` runs these lines)::
+
+        case = load_case("cases/membrane-mode.toml", {"time.end": 0.001, "mesh.nz": 16})
+        case.time.steps, case.mesh.nz                                  # (50, 16)
+        load_case("cases/membrane-mode.toml", ["layers[0].tension=-1"])
+        # CaseError: layers[0].tension = -1: expected a number >= 0.0 (dyn/cm) (from --set)
     """
     _path_arg("load_case", "path", path)
     if isinstance(overrides, str):
@@ -399,12 +395,10 @@ def run(case: Case, out: str | os.PathLike[str] | None = None, *, checkpoint_eve
 
     Examples
     --------
-    >>> from pathlib import Path
-    >>> import multilayer
-    >>> cases = Path(multilayer.__file__).parents[1] / "cases"
-    >>> res = run(load_case(cases / "membrane-mode.toml", {"time.end": 0.001, "mesh.nz": 16}))
-    >>> res.status, len(res.t), res.max_relative_residual < 1e-12
-    ('ok', 50, True)
+    In a source checkout, with the installed plugins (``tests/test_api.py`` runs these lines)::
+
+        res = run(load_case("cases/membrane-mode.toml", {"time.end": 0.001, "mesh.nz": 16}))
+        res.status, len(res.t), res.max_relative_residual < 1e-12     # ('ok', 50, True)
     """
     _case_arg("run", case)
     _path_arg("run", "out", out, optional=True)
@@ -468,15 +462,13 @@ def steps(case: Case, *, registry: Registry | None = None) -> Generator[Step, No
 
     Examples
     --------
-    >>> from pathlib import Path
-    >>> import multilayer
-    >>> cases = Path(multilayer.__file__).parents[1] / "cases"
-    >>> case = load_case(cases / "membrane-mode.toml", {"mesh.nz": 16})
-    >>> for step in steps(case):
-    ...     if step.probes["eta_mid"] < 0.005:      # η at mid-length down to half its start: t ≈ T/6
-    ...         break
-    >>> step.n, round(step.t, 5), step.ledger["energy.relative_residual"] < 1e-12
-    (235, 0.0047, True)
+    In a source checkout, with the installed plugins (``tests/test_api.py`` runs these lines)::
+
+        case = load_case("cases/membrane-mode.toml", {"mesh.nz": 16})
+        for step in steps(case):
+            if step.probes["eta_mid"] < 0.005:      # η at mid-length down to half its start: t ≈ T/6
+                break
+        step.n, round(step.t, 5), step.ledger["energy.relative_residual"] < 1e-12     # (235, 0.0047, True)
     """
     _case_arg("steps", case)
     registry = registry or Registry.load()

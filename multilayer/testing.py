@@ -102,7 +102,7 @@ SCENE: dict[str, Any] = {
     "time": {"end": 1e-3, "dt": 1e-4},
     "fluid": {"model": "navier-stokes", "density": 1.0, "viscosity": 0.035},
     "coupler": {"model": "kinematic-splitting"},
-    "loads": {"inlet": {"kind": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
+    "loads": {"inlet": {"model": "cosine-pulse", "amplitude": 1.0e3, "duration": 1e-3}},
 }
 #: The coupler of the coupled scene for a nonlinear layer (the splitting's default wall impedance needs a linear
 #: wall): fluid and wall in one system, iterated by Newton's method.
@@ -487,7 +487,10 @@ def assert_layer_conforms(name: str, params: Mapping[str, Any] | None = None, re
                           workdir: Path | str | None = None) -> None:
     """:func:`check_layer`, raising ``AssertionError`` with one line per failed check.
 
-    >>> assert_layer_conforms("wave-membrane", checks=("schema", "build", "matrices", "essential-dofs"))
+    In a plugin package's tests (``tests/test_conformance.py`` runs it on the built-in layers)::
+
+        assert_layer_conforms("my-layer", plugins=[my_plugin_module])
+        assert_layer_conforms("wave-membrane", checks=("schema", "build", "matrices", "essential-dofs"))
     """
     failed = [r for r in check_layer(name, params, registry, plugins, checks, workdir) if not r.ok]
     if failed:

@@ -2,7 +2,7 @@
 
 The case gives the flow INTO the channel through the end (at the inlet, the
 flow that enters at z = 0), as any load kind: a number, a formula in t or a
-table ``{kind = "sine", ...}`` (:mod:`multilayer.functions.loads`), in
+table ``{model = "sine", ...}`` (:mod:`multilayer.functions.loads`), in
 cm²/s per unit depth in the planar channel, cm³/s in a tube.  A flux alone
 does not fix the velocity on the end, so the condition is defective: the
 end's mean pressure λ is one more unknown of the fluid's step, a Lagrange
@@ -30,7 +30,7 @@ from typing import Any
 from multilayer.boundary.contract import BoundaryCondition, BuildContext, EndTraction
 from multilayer.functions.loads import LoadSpec, PressureLoad
 from multilayer.plugin.hookspecs import hookimpl
-from multilayer.plugin.records import BoundaryPlugin, Param
+from multilayer.plugin.records import MODEL, BoundaryPlugin, Param
 from multilayer_plugins.pressure import history_from_spec
 
 #: the unit of a flow rate: the geometry's measure of a section times a velocity
@@ -69,7 +69,7 @@ class FlowRate(BoundaryCondition):
         return (self.flow,)
 
     def resolved(self) -> dict[str, Any]:
-        return {"kind": "flow-rate", "flow": self.flow.to_dict()}
+        return {MODEL: "flow-rate", "flow": self.flow.to_dict()}
 
 
 def flow_rate_end(context: BuildContext, flow: Any) -> FlowRate:

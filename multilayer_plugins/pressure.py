@@ -4,8 +4,8 @@ The end's mean normal stress over a step is the pressure history's average
 over the scheme's window (:mod:`multilayer.functions.loads`), independent of
 the flow: p̄ = P̄, no resistance.  The fluid receives −Δt P̄ Q̄ through the
 end (column ``work.<end>``).  A case writes the end as a number (constant),
-a string (formula in t) or a table ``{kind = "...", ...}`` with the load
-kind's parameters.
+a string (formula in t) or a table ``{model = "...", ...}`` with the load's
+parameters.
 """
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ class PressureEnd(BoundaryCondition):
         self.load = load
 
     @property
-    def kind(self) -> str:
-        """The load kind (``constant``, ``cosine-pulse``, ...)."""
-        return self.load.kind
+    def model(self) -> str:
+        """The load's name in a case file (``constant``, ``cosine-pulse``, ...)."""
+        return self.load.model
 
     def __repr__(self) -> str:
         return f"PressureEnd({self.load!r})"

@@ -49,7 +49,7 @@ PROBES = (4.0, 7.0, 10.0, 13.0, 16.0)
 OVERRIDES = {
     "geometry.length": LENGTH, "mesh.nz": 120, "mesh.nr": 4, "time.end": 0.1, "time.dt": 2.5e-4,
     "coupler": {"model": "monolithic", "scheme": "crank-nicolson"},
-    "loads.inlet": {"kind": "cosine-pulse", "amplitude": AMPLITUDE, "duration": DURATION},
+    "loads.inlet": {"model": "cosine-pulse", "amplitude": AMPLITUDE, "duration": DURATION},
     "output.probes": [{"name": f"eta_z{z:g}", "quantity": "eta", "z": z} for z in PROBES],
 }
 
@@ -85,7 +85,7 @@ def long_wave(tube: bool, R: float, rho: float, mu: float, wall: dict) -> dict[s
 
 
 def measure(kind: str) -> tuple[dict, ml.Results]:
-    case = ml.load_case(CASE, {**OVERRIDES, "geometry.kind": kind})
+    case = ml.load_case(CASE, {**OVERRIDES, "geometry.model": kind})
     res = ml.run(case)
     assert res.ok, res.reason
     arrivals = np.array([half_peak_time(res.t, res.probes[f"eta_z{z:g}"]) for z in PROBES])

@@ -305,6 +305,15 @@ def test_per_step_control_shares_the_tolerance_among_the_steps_of_the_memory_tim
     assert steps_in_memory({"accepted": 7}, 0.1, 1e-3, 0.5) == 8.0
 
 
+def test_crank_nicolsons_estimate_of_the_alternating_mode_depends_on_the_step_ratios_alone():
+    """μ of (−1)ⁿ: −8/13 on even steps; −18/7 when the step doubles (Milne factor 1/7, predictor's miss 18)."""
+    from multilayer.coupling.clock import alternating
+    cn = named("crank-nicolson")
+    assert math.isclose(alternating([0.1, 0.1, 0.1], cn), -8.0 / 13.0, rel_tol=1e-12)
+    assert math.isclose(alternating([0.2, 0.1, 0.1], cn), -18.0 / 7.0, rel_tol=1e-12)
+    assert math.isclose(alternating([2e-3, 1e-3, 1e-3], cn), -18.0 / 7.0, rel_tol=1e-12)
+
+
 def test_the_unechoed_estimate_drops_an_alternating_mode_and_keeps_a_smooth_error():
     """Crank–Nicolson's estimate of x = t³/6 (smooth) is kept (exactly on even steps, 0.78–1.10 of it at step
     ratios 2–0.8, 1.4 at 0.5: larger, so smaller steps, where they shrink fast); that of the undamped stiff mode A(−1)ⁿ, which the plain estimate sees at every step (8A/13 for

@@ -161,6 +161,23 @@ def test_a_run_in_memory_is_the_run_into_a_folder_bit_for_bit(tmp_path):
     assert_same_results(held, ml.read_results(tmp_path / "cli"))
 
 
+def test_the_examples_of_the_api_docstrings(monkeypatch):
+    """The lines of load_case's, run's and steps' docstrings (examples there, not doctests: they need the installed
+    plugins, which the core's doctests never use), run from the checkout as they are written."""
+    monkeypatch.chdir(CASES.parent)
+    case = ml.load_case("cases/membrane-mode.toml", {"time.end": 0.001, "mesh.nz": 16})
+    assert (case.time.steps, case.mesh.nz) == (50, 16)
+    with pytest.raises(ml.CaseError, match=r"^layers\[0\].tension = -1: expected a number >= 0.0 \(dyn/cm\) \(from --set\)$"):
+        ml.load_case("cases/membrane-mode.toml", ["layers[0].tension=-1"])
+    res = ml.run(case)
+    assert (res.status, len(res.t), res.max_relative_residual < 1e-12) == ("ok", 50, True)
+    case = ml.load_case("cases/membrane-mode.toml", {"mesh.nz": 16})
+    for step in ml.steps(case):
+        if step.probes["eta_mid"] < 0.005:
+            break
+    assert (step.n, round(step.t, 5), step.ledger["energy.relative_residual"] < 1e-12) == (235, 0.0047, True)
+
+
 def test_steps_are_the_rows_of_a_run_and_carry_the_state():
     case = small_case()
     held = ml.run(case)

@@ -19,7 +19,7 @@ from test_coupled import (
     volume_margin,
 )
 
-TUBE = 'geometry.kind="axisymmetric"'
+TUBE = 'geometry.model="axisymmetric"'
 COMPOSITE_TUBE = "pulse-koiter-thick-axisymmetric"
 
 

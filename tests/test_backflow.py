@@ -126,7 +126,7 @@ REVERSING = """
 title = "a flow rate that reverses, into a rigid tube with its outlet at p = 0"
 fluid = {{ model = "navier-stokes", density = 1.06, viscosity = 0.035 }}
 [geometry]
-kind = "axisymmetric"
+model = "axisymmetric"
 length = 6.0
 radius = 0.3
 [mesh]
@@ -139,7 +139,7 @@ dt = 1e-3
 [coupler]
 model = "fluid-only"
 [loads]
-inlet = {{ kind = "flow-rate", flow = {{ kind = "sine", amplitude = 20.0, frequency = 2.0 }} }}
+inlet = {{ model = "flow-rate", flow = {{ model = "sine", amplitude = 20.0, frequency = 2.0 }} }}
 outlet = {outlet}
 [output]
 every = 0
@@ -150,7 +150,7 @@ probes = [
 """
 
 
-WINDKESSEL = '{ kind = "windkessel", proximal = 2400.0, capacitance = 3.0e-5, distal = 1.47e4 }'
+WINDKESSEL = '{ model = "windkessel", proximal = 2400.0, capacitance = 3.0e-5, distal = 1.47e4 }'
 
 
 def run_reversing(tmp_path, name, end, *sets, outlet="0.0"):

@@ -68,7 +68,7 @@ def run(tmp_path, case, *sets):
 def test_a_resistance_outlet_under_every_coupler_closes_the_ledger(tmp_path, coupler):
     # explicit DN is stable on a heavy wall, and its volume lags a step (the fluid takes the wall's old velocity)
     heavy = ("layers[0].density=50.0", "solver.volume_margin=2") if "explicit" in coupler else ()
-    outlet = f'loads.outlet={{kind="test-resistance",resistance={RESISTANCE}}}'
+    outlet = f'loads.outlet={{model="test-resistance",resistance={RESISTANCE}}}'
     result, data = run(tmp_path / "r", "pulse-koiter", *TINY, *heavy, outlet, f"coupler={coupler}")
     assert result.status == "ok", result.reason
     s = data.series
@@ -86,7 +86,7 @@ def test_a_resistance_outlet_under_every_coupler_closes_the_ledger(tmp_path, cou
 def test_steady_flow_through_a_resistance_outlet_is_exact(tmp_path, resistance):
     # Δt = 1000 s: backward Euler damps the slowest transient (λ₁ = 0.345/s) by 1/(1 + λ₁Δt) ≈ 3e-3 a step
     result, data = run(tmp_path, "poiseuille-rigid", "time.dt=1000.0", "time.end=8000.0",
-                       f'loads.outlet={{kind="test-resistance",resistance={resistance}}}')
+                       f'loads.outlet={{model="test-resistance",resistance={resistance}}}')
     assert result.status == "ok"
     L, R, mu, p_in = 6.0, 0.5, 0.035, 10.0
     channel = 3.0 * mu * L / R**3  # 5.04
@@ -101,7 +101,7 @@ def test_steady_flow_through_a_resistance_outlet_is_exact(tmp_path, resistance):
 
 def test_a_bad_resistance_is_a_clear_error_at_its_key_path():
     with pytest.raises(CaseError, match=r"loads.outlet.resistance = -1.0: expected a number >= 0.0"):
-        load_case(CASES / "poiseuille-rigid.toml", ['loads.outlet={kind="test-resistance",resistance=-1.0}'], REGISTRY)
-    with pytest.raises(CaseError, match=r"loads.outlet.kind = 'test-resistanse': no such boundary condition kind; "
+        load_case(CASES / "poiseuille-rigid.toml", ['loads.outlet={model="test-resistance",resistance=-1.0}'], REGISTRY)
+    with pytest.raises(CaseError, match=r"loads.outlet.model = 'test-resistanse': no such boundary condition; "
                                         r"did you mean 'test-resistance'"):
-        load_case(CASES / "poiseuille-rigid.toml", ['loads.outlet={kind="test-resistanse",resistance=1.0}'], REGISTRY)
+        load_case(CASES / "poiseuille-rigid.toml", ['loads.outlet={model="test-resistanse",resistance=1.0}'], REGISTRY)

@@ -63,9 +63,9 @@ CASE = textwrap.dedent(
     poisson = 0.4
 
     [loads]
-    inlet = { kind = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }
+    inlet = { model = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }
     outlet = "0"
-    external = { kind = "table", file = "pe.csv", period = 0.01 }
+    external = { model = "table", file = "pe.csv", period = 0.01 }
 
     [initial]
     displacement = { r = "0.01*sin(pi*z/L)*H/R" }
@@ -102,7 +102,7 @@ def test_a_valid_case_with_its_defaults(case_file):
     assert (band.thin, band.cells) == (False, 4)
     assert type(band.params["density"]) is float  # an int is accepted for a float
     assert case.coupler.model == "kinematic-splitting"  # the default with a fluid
-    assert case.loads.inlet.kind == "cosine-pulse" and case.loads.interface.average(0, 1) == 0.0
+    assert case.loads.inlet.model == "cosine-pulse" and case.loads.interface.average(0, 1) == 0.0
     assert case.loads.external.average(0.0, 0.01) == pytest.approx(5.0)
     # H is the total thickness of the thick bands
     assert float(case.initial.displacement_r(z=3.0)) == pytest.approx(0.01 * 0.1 / 0.5)
@@ -118,7 +118,7 @@ def test_resolved_case_and_its_digest(case_file):
     assert case.digest == hashlib.sha256(text.encode()).hexdigest()
     assert case.resolved["coupler"] == {"model": "kinematic-splitting"}
     assert case.resolved["layers"][1]["cells"] == 4 and "cells" not in case.resolved["layers"][0]
-    assert case.resolved["loads"]["outlet"] == {"kind": "formula", "expr": "0"}
+    assert case.resolved["loads"]["outlet"] == {"model": "formula", "expr": "0"}
     assert case.resolved["loads"]["external"]["sha256"] == hashlib.sha256(b"t,p\n0,0\n0.005,10\n").hexdigest()
     # the resolved data is itself a valid case, and the same case
     again = validate_data(json.loads(json.dumps(case.resolved)), case_file.parent, FAKES)
@@ -270,7 +270,7 @@ BASE = textwrap.dedent(
     cells = 2
 
     [loads]
-    interface = { kind = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }
+    interface = { model = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }
 
     [initial]
     displacement = { r = "0.001*sin(pi*z/L)" }
@@ -316,10 +316,10 @@ MISTAKES = [
     ("cells-on-thin", ("poisson = 0.45", "poisson = 0.45\ncells = 3"), [],
      ["layers[0].cells = 3: only a thick layer has radial cells"]),
     ("formula-name", ("sin(pi*z/L)", "sin(pi*x/L)"), [], ["initial.displacement.r", "unknown name 'x'"]),
-    ("load-kind", ('kind = "cosine-pulse"', 'kind = "cosine_pulse"'), [],
-     ["loads.interface.kind = 'cosine_pulse'", "did you mean 'cosine-pulse'?"]),
-    ("table-missing", ('{ kind = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }',
-                       '{ kind = "table", file = "no-such.csv" }'), [],
+    ("load-kind", ('model = "cosine-pulse"', 'model = "cosine_pulse"'), [],
+     ["loads.interface.model = 'cosine_pulse'", "did you mean 'cosine-pulse'?"]),
+    ("table-missing", ('{ model = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }',
+                       '{ model = "table", file = "no-such.csv" }'), [],
      ["loads.interface.file = 'no-such.csv': no such file"]),
     ("output-key", ("every = 0", "evry = 0"), [], ["output.evry = 0: unknown key; did you mean 'every'?"]),
     ("solver", ("[output]", '[solver]\nlinear = "umfpak"\n\n[output]'), [], ["solver.linear = 'umfpak'"]),
@@ -349,7 +349,7 @@ FORMULA_MISTAKES = [
     ("not-real", 'loads.interface="sqrt(-1)"', ["loads.interface = 'sqrt(-1)': gives nan", "not a real number"]),
     ("not-real-late", 'loads.interface="1e3*sqrt(0.0005 - t)"',
      ["loads.interface = '1e3*sqrt(0.0005 - t)': gives nan at t = 0.000503906", "not a real number"]),
-    ("table-formula", 'loads.interface={kind="formula", expr="9**9**9"}',
+    ("table-formula", 'loads.interface={model="formula", expr="9**9**9"}',
      ["loads.interface.expr = '9**9**9': gives inf at t = 0: an overflow"]),
     ("power-tower", 'loads.interface="10**10**10*t"', ["loads.interface = '10**10**10*t'", "an overflow"]),
     ("huge-exponent", 'loads.interface="t**5000"', ["loads.interface = 't**5000'", "the exponent 5000 is too large"]),

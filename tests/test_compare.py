@@ -367,8 +367,8 @@ def test_compare_works_with_one_case(tmp_path):
 
 
 ARTERY = CASES / "pulse-artery-3layer.toml"  # intima (Koiter shell) | media (band) | lamina | adventitia (band)
-LONG_PULSE = ["geometry.kind=axisymmetric", "geometry.length=12", "mesh.nz=48", "mesh.nr=4", "time.end=0.028",
-              "time.dt=2e-4", 'loads.inlet={kind="cosine-pulse",amplitude=1.3333e4,duration=0.012}',
+LONG_PULSE = ["geometry.model=axisymmetric", "geometry.length=12", "mesh.nz=48", "mesh.nr=4", "time.end=0.028",
+              "time.dt=2e-4", 'loads.inlet={model="cosine-pulse",amplitude=1.3333e4,duration=0.012}',
               ('output.probes=[{name="eta_2",quantity="eta",z=2.0},{name="eta_6",quantity="eta",z=6.0},'
                '{name="p_2",quantity="p",z=2.0,r=0.0},{name="p_6",quantity="p",z=6.0,r=0.0}]')]
 

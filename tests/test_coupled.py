@@ -95,7 +95,7 @@ def test_coupled_case_ledger_closes_every_step(case, coupler, tmp_path):
     assert summary["energy"]["max_relative_residual"] <= 1e-9
     # a wall that moves with the fluid's velocity keeps the volume: to round-off in a planar channel (theory §7),
     # to the interface tolerance (1e-8) under sub-iterations (measured ≤ 2.4e-8 relative a step, 3.4e-9 drift)
-    planar = summary["case"]["geometry"]["kind"] == "planar"
+    planar = summary["case"]["geometry"]["model"] == "planar"
     if planar and not coupler.startswith("splitting"):
         tolerance = 1e-7 if coupler.startswith("dn-implicit") else 1e-9
         assert summary["volume"]["max_relative_residual"] <= tolerance, summary["volume"]

@@ -162,7 +162,7 @@ def test_a_run_in_memory_has_the_same_cycles_and_wall_shear_as_its_folder(tmp_pa
 
     case = ml.load_case(CASES / "pulse-koiter-thick.toml", {
         "mesh.nz": 12, "mesh.nr": 3, "time.end": 0.006,
-        "loads.inlet": {"kind": "sine", "amplitude": 2e3, "frequency": 500.0, "mean": 1e3}})
+        "loads.inlet": {"model": "sine", "amplitude": 2e3, "frequency": 500.0, "mean": 1e3}})
     held, saved = ml.run(case), ml.run(case, tmp_path)
     assert held.period == saved.period == pytest.approx(2e-3)
     assert [c["index"] for c in held.cycles] == [0, 1, 2]

@@ -43,7 +43,7 @@ def test_a_tubes_membrane_takes_the_pressure_on_its_moved_place():
     w = np.sqrt(P / (R * TENSION))
     errors = []
     for nz in (6, 12):
-        z, eta = lumen(nz, 'geometry.kind="axisymmetric"', f"initial.pressure={P}", "loads.external=0.0")
+        z, eta = lumen(nz, 'geometry.model="axisymmetric"', f"initial.pressure={P}", "loads.external=0.0")
         exact = R * (np.cos(w * (z - L / 2)) / np.cos(w * L / 2) - 1.0)
         errors.append(np.max(np.abs(eta - exact)) / np.max(exact))
     assert errors[1] < errors[0] / 7.0 and errors[1] < 1e-5, errors
@@ -63,7 +63,7 @@ def test_a_pressure_beyond_what_a_tubes_wall_holds_does_not_settle_and_says_so()
     """Once P⁰/(R C1) > (π/L)² the pressure on the moved lumen outweighs the membrane's lowest mode's stiffness
     (an equilibrium past buckling, if any): the iteration diverges and says so, keeping its first iterate, the
     deflection under the load on the reference lumen: P⁰ z (L − z)/(2 C1), a P2 function, exact."""
-    case = load_case(CASES / "pulse-membrane.toml", ("mesh.nz=6", "mesh.nr=2", 'geometry.kind="axisymmetric"'))
+    case = load_case(CASES / "pulse-membrane.toml", ("mesh.nz=6", "mesh.nr=2", 'geometry.model="axisymmetric"'))
     setup = Setup.build(case, Registry.load())
     with pytest.raises(Unsettled, match="initial.pressure = 1e[+]06 did not settle .* a smaller initial.pressure") as info:
         static_deflection(setup.stack, 1.0e6, 0.0)
@@ -76,7 +76,7 @@ def test_a_thick_band_at_the_fluid_of_a_tube_settles(lumen):
     """Under no-slip a thick first layer's lumen keeps its d_z free: the iteration's change stalls at 2e-14 of the
     deflection, the round-off of its solves, and stops there (it used to be taken for a wall giving way): K d = f(η)
     holds to the solves' round-off."""
-    case = load_case(CASES / "thick-wall.toml", ('geometry.kind="axisymmetric"', f'coupler.lumen="{lumen}"',
+    case = load_case(CASES / "thick-wall.toml", ('geometry.model="axisymmetric"', f'coupler.lumen="{lumen}"',
                                                  "initial.pressure=1000.0"))
     setup, _ = prepare(case, Registry.load())
     d = setup.initial_state().wall.d
@@ -142,8 +142,8 @@ def test_a_static_start_the_wall_cannot_hold_is_refused_at_validation(case, sets
 @pytest.mark.parametrize("case, sets", [
     ("carotid", ()),                                                         # thin first layer, splitting
     ("carotid", ('coupler={model="monolithic",scheme="bdf2"}',)),
-    ("thick-wall", ('geometry.kind="axisymmetric"', 'coupler.lumen="no-slip"', "initial.pressure=1000.0")),
-    ("thick-wall", ('geometry.kind="axisymmetric"', 'coupler.lumen="radial"', "initial.pressure=1000.0")),
+    ("thick-wall", ('geometry.model="axisymmetric"', 'coupler.lumen="no-slip"', "initial.pressure=1000.0")),
+    ("thick-wall", ('geometry.model="axisymmetric"', 'coupler.lumen="radial"', "initial.pressure=1000.0")),
     ("physiological-flow", ("loads.external=300.0",)),
 ])
 def test_validation_weighs_the_deflection_the_run_starts_from(case, sets):

@@ -25,7 +25,7 @@ from multilayer.plugin.registry import Registry
 REGISTRY = Registry.load()
 L, R, MU = 6.0, 0.5, 0.035  # cases/poiseuille-rigid.toml
 #: the inflow pulse of the coupled scene: cm²/s per unit depth, about what the pressure pulse of pulse-koiter drives
-PULSE = '{kind="cosine-pulse",amplitude=20.0,duration=0.003}'
+PULSE = '{model="cosine-pulse",amplitude=20.0,duration=0.003}'
 COUPLERS = [
     '"kinematic-splitting"',
     '{model="kinematic-splitting",scheme="crank-nicolson",beta=1.0}',
@@ -47,7 +47,7 @@ def test_a_prescribed_flow_through_a_rigid_channel_is_poiseuille_to_round_off(tm
     q = 1.5
     sections = ", ".join(f'{{ name = "q{i}", quantity = "flow_rate", z = {z} }}' for i, z in enumerate((0, 1.5, 3, 6)))
     result, data = run(tmp_path, "poiseuille-rigid", "time.dt=1000.0", "time.end=8000.0",
-                       f'loads.inlet={{kind="flow-rate",flow={q}}}',
+                       f'loads.inlet={{model="flow-rate",flow={q}}}',
                        f'output.probes=[{sections}, {{ name = "p_mid", quantity = "p", z = 3.0, r = 0.25 }}, '
                        f'{{ name = "uz_axis", quantity = "u_z", z = 3.0, r = 0.0 }}]')
     assert result.status == "ok", result.reason
@@ -65,13 +65,13 @@ def test_a_prescribed_flow_through_a_rigid_channel_is_poiseuille_to_round_off(tm
     assert np.all(s["energy.relative_residual"] <= 1e-11)
     # the Stokes matrix on a rigid wall, multiplier and all, is factorized once
     assert data.summary["factorizations"]["fluid"] == 1
-    assert data.summary["case"]["loads"]["inlet"] == {"kind": "flow-rate", "flow": {"kind": "constant", "value": q}}
+    assert data.summary["case"]["loads"]["inlet"] == {"model": "flow-rate", "flow": {"model": "constant", "value": q}}
 
 
 @pytest.mark.parametrize("coupler", COUPLERS)
 def test_a_flow_rate_inlet_under_every_coupler_closes_the_ledger(tmp_path, coupler):
     probes = 'output.probes=[{ name = "q_in", quantity = "flow_rate", z = 0.0 }]'
-    result, data = run(tmp_path, "pulse-koiter", *TINY, probes, f"loads.inlet={{kind=\"flow-rate\",flow={PULSE}}}",
+    result, data = run(tmp_path, "pulse-koiter", *TINY, probes, f"loads.inlet={{model=\"flow-rate\",flow={PULSE}}}",
                        f"coupler={coupler}")
     assert result.status == "ok", result.reason
     s = data.series
@@ -88,7 +88,7 @@ def test_a_flow_rate_inlet_under_every_coupler_closes_the_ledger(tmp_path, coupl
 
 def test_monolithic_and_dirichlet_neumann_find_the_same_multiplier(tmp_path):
     """The multiplier is a property of the coupled step, not of the coupler that solves it (both backward Euler)."""
-    inlet = f'loads.inlet={{kind="flow-rate",flow={PULSE}}}'
+    inlet = f'loads.inlet={{model="flow-rate",flow={PULSE}}}'
     _, mono = run(tmp_path / "m", "pulse-koiter", *TINY, inlet, 'coupler={model="monolithic"}')
     _, dn = run(tmp_path / "d", "pulse-koiter", *TINY, inlet, 'coupler={model="dirichlet-neumann-implicit",'
                                                               'tolerance=1e-11}')
@@ -102,33 +102,33 @@ def test_a_flow_given_as_a_table_or_a_formula(tmp_path):
     table.write_text("t, q\n0, 0\n0.001, 1.0\n0.01, 1.0\n")
     case = tmp_path / "case.toml"
     case.write_text((CASES / "poiseuille-rigid.toml").read_text())
-    for flow in ('{kind="table",file="q.csv"}', '"minimum(1e3*t, 1)"'):
-        loaded = load_case(case, [f'loads.inlet={{kind="flow-rate",flow={flow}}}', "time.end=0.004",
+    for flow in ('{model="table",file="q.csv"}', '"minimum(1e3*t, 1)"'):
+        loaded = load_case(case, [f'loads.inlet={{model="flow-rate",flow={flow}}}', "time.end=0.004",
                                   "time.dt=0.001"], REGISTRY)
         q = loaded.loads.inlet.flow
         assert [float(q.value(t)) for t in (0.0, 0.0005, 0.002)] == pytest.approx([0.0, 0.5, 1.0], rel=1e-14)
 
 
 @pytest.mark.parametrize("inlet, message", [
-    ('{kind="flow-rate"}', r"loads.inlet.flow: missing; expected a number, a formula in t or a table \{kind = ...\} "
+    ('{model="flow-rate"}', r"loads.inlet.flow: missing; expected a number, a formula in t or a table \{model = ...\} "
                            r"\(cm²/s per unit depth \(planar\), cm³/s \(tube\)\)"),
-    ('{kind="flow-rate",flow={kind="sine",amplitude="2",frequency=1.0}}',
+    ('{model="flow-rate",flow={model="sine",amplitude="2",frequency=1.0}}',
      r"loads.inlet.flow.amplitude = '2': expected a number \(cm²/s per unit depth"),
-    ('{kind="flow-rate",flow={kind="sine",amplitude=2.0,frequency=-1.0}}',
+    ('{model="flow-rate",flow={model="sine",amplitude=2.0,frequency=-1.0}}',
      r"loads.inlet.flow.frequency = -1.0: expected a number > 0.0 \(Hz\)"),
-    ('{kind="flow-rate",flow={kind="sinus",amplitude=2.0}}',
-     r"loads.inlet.flow.kind = 'sinus': no such flow rate load kind; did you mean 'sine'"),
-    ('{kind="flow-rate",flow="2*sin(2*pi*s)"}', r"loads.inlet.flow = '2\*sin\(2\*pi\*s\)': invalid formula in t"),
-    ('{kind="flow-rate",flow={kind="table",file="nowhere.csv"}}', r"loads.inlet.flow.file = 'nowhere.csv': no such file"),
-    ('{kind="flow-rate",flow=[1.0]}', r"loads.inlet.flow = \[1.0\]: expected a number, a formula in t or a table"),
-    ('{kind="flow-rate",flow=2.0,pressure=1.0}', r"loads.inlet.pressure = 1.0: unknown key"),
+    ('{model="flow-rate",flow={model="sinus",amplitude=2.0}}',
+     r"loads.inlet.flow.model = 'sinus': no such flow rate load; did you mean 'sine'"),
+    ('{model="flow-rate",flow="2*sin(2*pi*s)"}', r"loads.inlet.flow = '2\*sin\(2\*pi\*s\)': invalid formula in t"),
+    ('{model="flow-rate",flow={model="table",file="nowhere.csv"}}', r"loads.inlet.flow.file = 'nowhere.csv': no such file"),
+    ('{model="flow-rate",flow=[1.0]}', r"loads.inlet.flow = \[1.0\]: expected a number, a formula in t or a table"),
+    ('{model="flow-rate",flow=2.0,pressure=1.0}', r"loads.inlet.pressure = 1.0: unknown key"),
 ])
 def test_bad_input_is_a_clear_error_at_its_key_path(inlet, message):
     with pytest.raises(CaseError, match=message):
         load_case(CASES / "poiseuille-rigid.toml", [f"loads.inlet={inlet}"], REGISTRY)
 
 
-BOTH = ('loads.inlet={kind="flow-rate",flow=1.0}', 'loads.outlet={kind="flow-rate",flow=-1.0}')
+BOTH = ('loads.inlet={model="flow-rate",flow=1.0}', 'loads.outlet={model="flow-rate",flow=-1.0}')
 
 
 #: what a given motion of the wall ties the two flow rates to
@@ -148,7 +148,7 @@ def test_a_flow_rate_at_both_ends_of_a_fluid_that_moves_no_wall_is_refused_at_va
     with pytest.raises(CaseError) as info:
         load_case(CASES / f"{case}.toml", (*sets, *BOTH), REGISTRY)
     assert [str(p) for p in info.value.problems] == [
-        f"loads.outlet.kind = 'flow-rate': a flow rate at both ends (loads.inlet.kind = 'flow-rate' too) of a fluid "
+        f"loads.outlet.model = 'flow-rate': a flow rate at both ends (loads.inlet.model = 'flow-rate' too) of a fluid "
         f"{wall}, and no end sets the level of the pressure; expected a flow rate at one end at most; give the other "
         f"end a pressure, a resistance or a windkessel, or couple a compliant wall ([[layers]] with 'monolithic' or "
         f"'kinematic-splitting'), which stores the difference (from --set)"]
@@ -160,7 +160,7 @@ def test_the_cli_refuses_it_in_one_line_before_anything_runs(tmp_path, capsys):
                  ["run", str(CASES / "poiseuille-rigid.toml"), "--out", str(tmp_path / "out"), *sets]):
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 2 and err[1].startswith("loads.outlet.kind = 'flow-rate': a flow rate at both ends"), err
+        assert len(err) == 2 and err[1].startswith("loads.outlet.model = 'flow-rate': a flow rate at both ends"), err
     assert not (tmp_path / "out").exists()
 
 
@@ -177,7 +177,7 @@ def test_a_compliant_wall_stores_what_two_flow_rates_leave_behind(tmp_path):
     wall, which takes it; the volume ledger closes to round-off (a planar wall moving with the fluid's velocity)
     and the lumen holds what came in."""
     result, data = run(tmp_path, "quick-start", "mesh.nz=20", "mesh.nr=3", "time.end=0.002",
-                       f"loads.inlet={{kind=\"flow-rate\",flow={PULSE}}}", 'loads.outlet={kind="flow-rate",flow=0.0}')
+                       f"loads.inlet={{model=\"flow-rate\",flow={PULSE}}}", 'loads.outlet={model="flow-rate",flow=0.0}')
     assert result.status == "ok", result.reason
     s = data.series
     assert np.max(np.abs(s["volume.relative_residual"])) <= 1e-10
@@ -189,7 +189,7 @@ def test_a_compliant_wall_stores_what_two_flow_rates_leave_behind(tmp_path):
 def test_a_run_with_a_flow_rate_inlet_resumes_bit_identical(tmp_path):
     """λ is the flow-rate end's state: a run resumed from its checkpoint writes the same bytes as one that ran
     through (with the same checkpoints)."""
-    assert_resume_is_bit_identical(tmp_path, "pulse-koiter", *TINY, f"loads.inlet={{kind=\"flow-rate\",flow={PULSE}}}")
+    assert_resume_is_bit_identical(tmp_path, "pulse-koiter", *TINY, f"loads.inlet={{model=\"flow-rate\",flow={PULSE}}}")
 
 
 @pytest.mark.parametrize("coupler, words", [

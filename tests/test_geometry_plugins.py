@@ -53,7 +53,7 @@ TINY = ("geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
 
 def both(tmp_path, case, *sets):
     runs = []
-    for name, geometry in (("planar", ()), ("deep", ('geometry.kind="test-deep"', f"geometry.depth={DEPTH}"))):
+    for name, geometry in (("planar", ()), ("deep", ('geometry.model="test-deep"', f"geometry.depth={DEPTH}"))):
         case_ = load_case(CASES / f"{case}.toml", [*sets, *geometry], REGISTRY)
         result = run_case(case_, tmp_path / name, REGISTRY)
         assert result.status == "ok", result.reason
@@ -90,14 +90,14 @@ def test_a_deeper_channel_moves_alike_and_every_integral_scales_with_its_depth(t
     assert np.all(d["energy.relative_residual"] <= 1e-9)
     assert deep.summary["plugins"]["geometry"]["name"] == "test-deep"
     assert deep.summary["case"]["geometry"] == {"length": planar.summary["case"]["geometry"]["length"],
-                                                "radius": 0.5, "kind": "test-deep", "depth": DEPTH}
+                                                "radius": 0.5, "model": "test-deep", "depth": DEPTH}
 
 
 def test_an_unknown_geometry_or_a_bad_depth_is_a_clear_error():
-    with pytest.raises(CaseError, match=r"geometry.kind = 'test-dep': no such geometry plugin; did you mean "
+    with pytest.raises(CaseError, match=r"geometry.model = 'test-dep': no such geometry plugin; did you mean "
                                         r"'test-deep'"):
-        load_case(CASES / "poiseuille-rigid.toml", ['geometry.kind="test-dep"'], REGISTRY)
+        load_case(CASES / "poiseuille-rigid.toml", ['geometry.model="test-dep"'], REGISTRY)
     with pytest.raises(CaseError, match=r"geometry.depth = -1.0: expected a number > 0.0"):
-        load_case(CASES / "poiseuille-rigid.toml", ['geometry.kind="test-deep"', "geometry.depth=-1.0"], REGISTRY)
+        load_case(CASES / "poiseuille-rigid.toml", ['geometry.model="test-deep"', "geometry.depth=-1.0"], REGISTRY)
     with pytest.raises(CaseError, match=r"geometry.depth = 2.0: unknown key"):
         load_case(CASES / "poiseuille-rigid.toml", ["geometry.depth=2.0"], REGISTRY)

@@ -27,8 +27,8 @@ from multilayer.plugin.problems import CaseError
 from multilayer.plugin.registry import Registry
 
 #: test_casefile's valid case, its interface load a table (the file and table inputs are what is tested here)
-BASE = CASEFILE_BASE.replace('interface = { kind = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }',
-                             'interface = { kind = "table", file = "p.csv" }')
+BASE = CASEFILE_BASE.replace('interface = { model = "cosine-pulse", amplitude = 1.3333e4, duration = 0.003 }',
+                             'interface = { model = "table", file = "p.csv" }')
 assert 'file = "p.csv"' in BASE
 TABLE = "t,p\n0,0\n0.0005,100\n0.001,0\n"
 
@@ -355,8 +355,8 @@ FACTORIES = [
      "layers[1]: dict-band: the factory returned dict; expected a ThickLayer"),
     ("thin-is-thick", ['layers[0]={model="thick-as-thin", density=1.0}'],
      "layers[0]: thick-as-thin: the factory returned a thick layer (LinearElasticBand); expected a ThinLayer"),
-    ("geometry-none", ["geometry.kind=none-geometry"],
-     "geometry.kind = 'none-geometry': the plugin's factory returned NoneType, not a Geometry"),
+    ("geometry-none", ["geometry.model=none-geometry"],
+     "geometry.model = 'none-geometry': the plugin's factory returned NoneType, not a Geometry"),
 ]
 
 

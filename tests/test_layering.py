@@ -1,5 +1,8 @@
 """The house's layering (pyproject.toml, ``[tool.importlinter]``) and the size of its modules, checked in CI."""
 
+import ast
+import doctest
+import textwrap
 from pathlib import Path
 
 from importlinter.cli import lint_imports
@@ -67,3 +70,104 @@ def test_the_cycle_finder_finds_a_cycle():
             return self.edges[m]
 
     assert strongly_connected(Graph(), Graph.edges) == [["a", "b", "c"]]
+
+
+# -- doctests of the core: no plugin ---------------------------------------------------------------------------------
+# The core's examples show the core: a geometry, a layer, a scheme or a boundary condition they need is a stand-in
+# defined in the example (or a registry of stand-ins, Registry.load([...], entry_points=False)), never a built-in
+# plugin: the core's doctests pass with multilayer_plugins absent, and a plugin's change never breaks them.
+
+
+def docstring_examples(root: Path = ROOT / "multilayer"):
+    """(file, line, source) of every doctest example of the modules under ``root``, read from their text."""
+    parser = doctest.DocTestParser()
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+                doc = ast.get_docstring(node, clean=False)
+                if doc and ">>>" in doc:
+                    first = node.body[0].lineno if not isinstance(node, ast.Module) else 1
+                    for example in parser.get_examples(doc):
+                        yield path, first + example.lineno, example.source
+
+
+def registry_defaults(root: Path = ROOT / "multilayer") -> dict[str, int]:
+    """Name → position of its ``registry`` argument, for every function under ``root`` whose ``registry`` defaults
+    to None: called without one, it loads the installed plugins."""
+    out = {}
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.FunctionDef):
+                continue
+            args = node.args
+            positional = [*args.posonlyargs, *args.args]
+            defaults = dict(zip([a.arg for a in positional][len(positional) - len(args.defaults):], args.defaults))
+            defaults |= {a.arg: d for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is not None}
+            if isinstance(defaults.get("registry"), ast.Constant) and defaults["registry"].value is None:
+                names = [a.arg for a in positional]
+                skip = 1 if names and names[0] in ("self", "cls") else 0
+                out[node.name] = names.index("registry") - skip if "registry" in names else 10**6
+    return out
+
+
+def plugin_uses(source: str, loaders: dict[str, int]) -> list[str]:
+    """What in the doctest example ``source`` needs the installed plugins: an import of ``multilayer_plugins``, a
+    ``Registry.load`` of the entry points, a call of a ``loaders`` function without its registry.
+
+    >>> plugin_uses("from multilayer_plugins import planar\\n", {}), plugin_uses("x = 1  # multilayer_plugins\\n", {})
+    (['imports multilayer_plugins'], [])
+    >>> plugin_uses("importlib.import_module('multilayer_plugins.planar')\\n", {})
+    ['imports multilayer_plugins']
+    >>> plugin_uses("named('bdf2').order\\n", {"named": 1}), plugin_uses("named('bdf2', reg)\\n", {"named": 1})
+    (['named(...) without a registry: the installed plugins'], [])
+    >>> plugin_uses("Registry.load().names('x')\\n", {}), plugin_uses("Registry.load([p], entry_points=False)\\n", {})
+    (['Registry.load(...) of the installed plugins'], [])
+    """
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return ["imports multilayer_plugins"] if "multilayer_plugins" in source else []
+    modules = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    modules += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    modules += [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)]  # by name
+    found = ["imports multilayer_plugins"] if any(m.split(".")[0] == "multilayer_plugins" for m in modules) else []
+    for call in (n for n in ast.walk(tree) if isinstance(n, ast.Call)):
+        func = call.func
+        name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+        keywords = {k.arg: k.value for k in call.keywords}
+        if name == "load" and isinstance(func, ast.Attribute) and getattr(func.value, "id", "") == "Registry":
+            off = keywords.get("entry_points")
+            if not (isinstance(off, ast.Constant) and off.value is False):
+                found.append("Registry.load(...) of the installed plugins")
+        elif name in loaders and "registry" not in keywords and len(call.args) <= loaders[name] and not any(
+                isinstance(a, ast.Starred) for a in call.args):
+            found.append(f"{name}(...) without a registry: the installed plugins")
+    return found
+
+
+def test_no_doctest_of_the_core_uses_a_plugin():
+    loaders = registry_defaults()
+    assert {"named", "schemes", "load_case", "validate_data"} <= set(loaders), sorted(loaders)
+    examples = list(docstring_examples())
+    assert len(examples) > 100, len(examples)
+    offenders = [f"{path.relative_to(ROOT)}:{line}: {use}" for path, line, source in examples
+                 for use in plugin_uses(source, loaders)]
+    assert offenders == [], "doctests of multilayer/ that use a plugin (use a stand-in):\n" + "\n".join(offenders)
+
+
+def test_the_doctest_check_catches_an_offender(tmp_path):
+    """The check reads what it should: a module whose examples import a plugin and load the installed ones."""
+    (tmp_path / "bad.py").write_text(textwrap.dedent('''\
+        def f(registry=None):
+            """The offenders.
+
+            >>> from multilayer_plugins.planar import Planar
+            >>> f()
+            >>> f(registry=None), f(None)
+            (None, None)
+            """
+        '''))
+    loaders = registry_defaults(tmp_path)
+    assert loaders == {"f": 0}
+    found = [(line, use) for _, line, source in docstring_examples(tmp_path) for use in plugin_uses(source, loaders)]
+    assert found == [(4, "imports multilayer_plugins"), (5, "f(...) without a registry: the installed plugins")]

@@ -124,11 +124,11 @@ def test_load_from_spec_every_kind(tmp_path):
     specs = [
         (7, 7.0),
         ("2*t + L", 2 * 0.25 + 6.0),
-        ({"kind": "constant", "value": 3}, 3.0),
-        ({"kind": "cosine-pulse", "amplitude": 2.0, "duration": 1.0}, 1.0),
-        ({"kind": "sine", "amplitude": 1.0, "frequency": 1.0}, 2.0 / np.pi),
-        ({"kind": "table", "file": "inlet.csv", "scale": 2.0}, 100.0),
-        ({"kind": "formula", "expr": "4*t"}, 1.0),
+        ({"model": "constant", "value": 3}, 3.0),
+        ({"model": "cosine-pulse", "amplitude": 2.0, "duration": 1.0}, 1.0),
+        ({"model": "sine", "amplitude": 1.0, "frequency": 1.0}, 2.0 / np.pi),
+        ({"model": "table", "file": "inlet.csv", "scale": 2.0}, 100.0),
+        ({"model": "formula", "expr": "4*t"}, 1.0),
     ]
     for spec, avg in specs:
         load = load_from_spec(spec, "loads.inlet", tmp_path, {"L": 6.0})
@@ -141,11 +141,11 @@ def test_table_is_relative_to_the_case_folder_and_pinned_by_its_hash(tmp_path):
     data = b"0,1\n1,3\n"
     (tmp_path / "data").mkdir()
     (tmp_path / "data" / "p.csv").write_bytes(data)
-    load = load_from_spec({"kind": "table", "file": "data/p.csv"}, "loads.outlet", tmp_path)
-    assert load.to_dict() == {"kind": "table", "file": "data/p.csv", "period": None, "scale": 1.0,
+    load = load_from_spec({"model": "table", "file": "data/p.csv"}, "loads.outlet", tmp_path)
+    assert load.to_dict() == {"model": "table", "file": "data/p.csv", "period": None, "scale": 1.0,
                               "sha256": hashlib.sha256(data).hexdigest()}
     with pytest.raises(CaseError, match=r"loads.outlet.sha256 = '0+': the file's SHA-256 differs"):
-        load_from_spec({"kind": "table", "file": "data/p.csv", "sha256": "0" * 64}, "loads.outlet", tmp_path)
+        load_from_spec({"model": "table", "file": "data/p.csv", "sha256": "0" * 64}, "loads.outlet", tmp_path)
 
 
 @pytest.mark.parametrize(
@@ -155,14 +155,14 @@ def test_table_is_relative_to_the_case_folder_and_pinned_by_its_hash(tmp_path):
         ([1, 2], "loads.inlet = [1, 2]: expected a number"),
         (float("inf"), "expected a finite pressure"),
         ("sin(z)", "loads.inlet = 'sin(z)': invalid formula in t: unknown name 'z'"),
-        ({"amplitude": 1.0}, "loads.inlet.kind: missing"),
-        ({"kind": "pulse"}, "loads.inlet.kind = 'pulse': no such pressure load kind; did you mean 'cosine-pulse'?"),
-        ({"kind": "cosine-pulse", "amplitude": 1.0}, "loads.inlet.duration: missing; expected a number > 0.0 (s)"),
-        ({"kind": "cosine-pulse", "amplitude": 1.0, "duration": 0}, "loads.inlet.duration = 0: expected a number > 0.0"),
-        ({"kind": "sine", "amplitude": 1.0, "frequency": 1.0, "phse": 0.0},
+        ({"amplitude": 1.0}, "loads.inlet.model: missing"),
+        ({"model": "pulse"}, "loads.inlet.model = 'pulse': no such pressure load; did you mean 'cosine-pulse'?"),
+        ({"model": "cosine-pulse", "amplitude": 1.0}, "loads.inlet.duration: missing; expected a number > 0.0 (s)"),
+        ({"model": "cosine-pulse", "amplitude": 1.0, "duration": 0}, "loads.inlet.duration = 0: expected a number > 0.0"),
+        ({"model": "sine", "amplitude": 1.0, "frequency": 1.0, "phse": 0.0},
          "loads.inlet.phse = 0.0: unknown key; did you mean 'phase'?"),
-        ({"kind": "table", "file": "missing.csv"}, "loads.inlet.file = 'missing.csv': no such file"),
-        ({"kind": "formula", "expr": "t +"}, "loads.inlet.expr = 't +': invalid formula"),
+        ({"model": "table", "file": "missing.csv"}, "loads.inlet.file = 'missing.csv': no such file"),
+        ({"model": "formula", "expr": "t +"}, "loads.inlet.expr = 't +': invalid formula"),
     ],
 )
 def test_bad_specs_raise_case_errors_with_the_key_path(tmp_path, spec, message):
@@ -174,7 +174,7 @@ def test_bad_specs_raise_case_errors_with_the_key_path(tmp_path, spec, message):
 def test_bad_table_file_is_a_case_error(tmp_path):
     (tmp_path / "p.csv").write_text("0,1\n0.5,oops\n")
     with pytest.raises(CaseError, match=r"loads.inlet.file = 'p.csv': invalid table: line 2"):
-        load_from_spec({"kind": "table", "file": "p.csv"}, "loads.inlet", tmp_path)
+        load_from_spec({"model": "table", "file": "p.csv"}, "loads.inlet", tmp_path)
 
 
 @pytest.mark.parametrize("period,dt", [(0.8, 1e-3), (0.02, 3e-5), (0.6, 0.07)])
@@ -242,4 +242,4 @@ def test_a_linear_tables_breakpoints_are_its_rows_every_period():
 def test_bad_interpolations_are_refused_with_their_key_path(tmp_path, spec, words):
     (tmp_path / "p.csv").write_text("0,1\n0.5,3\n1,2\n")
     with pytest.raises(CaseError, match=words):
-        load_from_spec({"kind": "table", "file": "p.csv", **spec}, "loads.inlet", tmp_path)
+        load_from_spec({"model": "table", "file": "p.csv", **spec}, "loads.inlet", tmp_path)

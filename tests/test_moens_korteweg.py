@@ -60,12 +60,12 @@ def test_foot_to_foot_pulse_wave_velocity_is_moens_korteweg_on_a_long_thin_tube(
     R, h, E, s, rho = 0.5, 0.01, 1.6e7, 0.3, 1.0
     zs = (3.0, 9.0)
     case = ml.load_case(Path(__file__).parents[1] / "cases" / "pulse-koiter.toml", {
-        "geometry.kind": "axisymmetric", "geometry.length": 16.0, "geometry.radius": R, "mesh.nz": 48,
+        "geometry.model": "axisymmetric", "geometry.length": 16.0, "geometry.radius": R, "mesh.nz": 48,
         "mesh.nr": 6, "time.end": 0.06, "time.dt": 5e-4,
         "fluid": {"model": "navier-stokes", "density": rho, "viscosity": 0.0035},
         "layers": [{"model": "koiter-shell", "density": 1.1, "thickness": h, "young": E, "poisson": s}],
         "coupler": {"model": "monolithic", "scheme": "crank-nicolson"},
-        "loads.inlet": {"kind": "cosine-pulse", "amplitude": 100.0, "duration": 0.04},
+        "loads.inlet": {"model": "cosine-pulse", "amplitude": 100.0, "duration": 0.04},
         "output.probes": [{"name": f"{q}_{z:g}", "quantity": q, "z": z, **({"r": 0.0} if q == "p" else {})}
                           for q in ("eta", "p") for z in zs]})
     res = ml.run(case)

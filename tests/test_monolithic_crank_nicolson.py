@@ -121,7 +121,7 @@ def test_on_its_own_domains_the_geometric_remainder_is_crank_nicolsons_own(kind,
         return terms
 
     monkeypatch.setattr(FluidStep, "identity", checked)
-    case = load_tube(overrides={"time.end": 0.02, "geometry.kind": kind})
+    case = load_tube(overrides={"time.end": 0.02, "geometry.model": kind})
     assert run(case).status == "ok"
     G, own = np.array(seen).T
     assert np.max(np.abs(G)) > 0.0

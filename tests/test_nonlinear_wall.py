@@ -34,13 +34,13 @@ PROBES = [{"name": f"eta_z{k}", "quantity": "eta", "z": float(k)} for k in (1, 2
 FLUID = {"geometry": {"length": 6.0, "radius": 0.5}, "mesh": {"nz": 12, "nr": 3, "order": 2},
          "time": {"end": 3e-3, "dt": 1e-4}, "fluid": {"model": "navier-stokes", "density": 1.0, "viscosity": 0.035},
          "layers": [{**LAYER, "cubic": 2e9, "damping": 10.0, "cubic_damping": 1.0}],
-         "loads": {"inlet": {"kind": "cosine-pulse", "amplitude": 1.3e4, "duration": 3e-3}},
+         "loads": {"inlet": {"model": "cosine-pulse", "amplitude": 1.3e4, "duration": 3e-3}},
          "output": {"probes": PROBES}}
 #: a band behind the membrane (theory §9's composite wall's)
 BAND = {"model": "linear-elastic", "density": 1.1, "thickness": 0.1, "young": 7.5e5, "poisson": 0.45, "cells": 2}
 #: the wall alone under the same pulse on its lumen
 SOLID = {**FLUID, "fluid": "none", "layers": [{**LAYER, "damping": 10.0, "cubic_damping": 1.0}],
-         "loads": {"interface": {"kind": "cosine-pulse", "amplitude": 1.3e4, "duration": 3e-3}}}
+         "loads": {"interface": {"model": "cosine-pulse", "amplitude": 1.3e4, "duration": 3e-3}}}
 #: the wall alone ringing from a large initial deflection (k₃η² = 4k at its crest), no damping, no load
 RINGING = {**SOLID, "layers": [LAYER], "loads": {}, "time": {"end": 2e-3, "dt": 1e-4},
            "initial": {"displacement": {"r": "0.1*sin(pi*z/L)"}}}
@@ -237,7 +237,7 @@ def test_a_run_started_at_the_nonlinear_equilibrium_stays_at_rest(tmp_path, sche
     ends' pressure: η and Q do not move."""
     P = 5.0e3
     _, data = run(tmp_path, FLUID, {"model": "monolithic", "scheme": scheme},
-                  geometry={"kind": "axisymmetric", "length": 6.0, "radius": 0.5}, initial={"pressure": P},
+                  geometry={"model": "axisymmetric", "length": 6.0, "radius": 0.5}, initial={"pressure": P},
                   loads={"inlet": P, "outlet": P}, time={"end": 1e-3, "dt": 2e-4},
                   output={"probes": PROBES + [{"name": "q_in", "quantity": "flow_rate", "z": 0.0}]})
     eta = np.array([data.series[p["name"]] for p in PROBES])
@@ -274,7 +274,7 @@ cubic = 2.0e9
 model = "monolithic"
 scheme = "crank-nicolson"
 [loads]
-inlet = {{ kind = "cosine-pulse", amplitude = 1.3e4, duration = 3e-3 }}
+inlet = {{ model = "cosine-pulse", amplitude = 1.3e4, duration = 3e-3 }}
 """
 
 

@@ -106,7 +106,7 @@ def band(H, E, s, cells=4):
 
 def resolved(kind, layers, R=0.5, L=6.0, nz=24):
     case = ml.load_case(CASES / "pulse-koiter-thick.toml",
-                        {"geometry.kind": kind, "geometry.radius": R, "geometry.length": L, "mesh.nz": nz,
+                        {"geometry.model": kind, "geometry.radius": R, "geometry.length": L, "mesh.nz": nz,
                          "mesh.nr": 2, "layers": layers, "coupler": "monolithic"})
     return dict(case.resolved)
 

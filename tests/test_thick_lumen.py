@@ -125,7 +125,7 @@ def test_monolithic_time_orders_on_a_thick_lumen(scheme, low, reference, tmp_pat
 def no_slip_reference(request, tmp_path_factory):
     """(geometry, monolithic CN at Δt = 6.25e-6 under no-slip): the time reference of the no-slip order test."""
     geometry = request.param
-    return geometry, run(tmp_path_factory.mktemp("ref"), *ORDER_MESH, "time.dt=6.25e-6", f"geometry.kind={geometry}",
+    return geometry, run(tmp_path_factory.mktemp("ref"), *ORDER_MESH, "time.dt=6.25e-6", f"geometry.model={geometry}",
                          'coupler={model="monolithic",scheme="crank-nicolson",lumen="no-slip"}')[2]
 
 
@@ -138,7 +138,7 @@ def test_monolithic_time_orders_under_no_slip(scheme, low, no_slip_reference, tm
     geometry, reference = no_slip_reference
     errors = []
     for dt in (1e-4, 5e-5, 2.5e-5):
-        s = run(tmp_path / f"{dt}", *ORDER_MESH, f"time.dt={dt}", f"geometry.kind={geometry}",
+        s = run(tmp_path / f"{dt}", *ORDER_MESH, f"time.dt={dt}", f"geometry.model={geometry}",
                 f'coupler={{model="monolithic",scheme="{scheme}",lumen="no-slip"}}')[2]
         errors.append(max(np.max(np.abs(np.interp(s["t"], reference["t"], reference[p]) - s[p]))
                           / np.max(np.abs(reference[p])) for p in ("eta_z1", "eta_z2", "dz_z1")))
@@ -159,7 +159,7 @@ def quasi_static(out, ramp, *sets, static=STATIC, lumen="radial"):
     Returns max_t |η(t, L/2) − p(t) H/(λ+2μ)| / (P0 H/(λ+2μ)) over the ramp, that at its end, and the
     band's mid-thickness d_r at the end against half the static lumen value (the linear profile).
     """
-    pulse = f'{{kind="cosine-pulse",amplitude={P0},duration={2 * ramp}}}'
+    pulse = f'{{model="cosine-pulse",amplitude={P0},duration={2 * ramp}}}'
     code, summary, s = run(out, "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.dt=1e-4", f"time.end={ramp}",
                            f'layers[0]={{model="linear-elastic",density=1.1,thickness={H},young={E},poisson={NU},'
                            f'outer="clamped",cells=2}}', f"loads.inlet={pulse}", f"loads.outlet={pulse}",
@@ -205,7 +205,7 @@ def lame_clamped(p, a=0.5, h=H):
 
 
 def test_slow_pressure_ramp_in_a_tube_approaches_lame(tmp_path):
-    """The same scene (radial gluing) in a tube (``geometry.kind = "axisymmetric"``): the lumen approaches Lamé's
+    """The same scene (radial gluing) in a tube (``geometry.model = "axisymmetric"``): the lumen approaches Lamé's
     d_r(a), 5.8 % above the planar band's p H/(λ+2μ) for this band (ν = 0.45, H/a = 0.2: the hoop strain d_r/r
     enters tr ε).
     Measured (the mesh of test_slow_pressure_ramp_approaches_the_static_band): |η/η_Lamé − 1| at the ramp's
@@ -216,7 +216,7 @@ def test_slow_pressure_ramp_in_a_tube_approaches_lame(tmp_path):
     assert abs(static / STATIC - 1) > 0.05  # what the tube's geometry changes
     ends = []
     for ramp in (0.01, 0.02):
-        deviation, end, _, s = quasi_static(tmp_path / f"tube{ramp}", ramp, "geometry.kind=axisymmetric",
+        deviation, end, _, s = quasi_static(tmp_path / f"tube{ramp}", ramp, "geometry.model=axisymmetric",
                                             static=static)
         ends.append(end)
         assert abs(s["eta"][-1] / STATIC - 1) > 0.05  # not the planar band's
@@ -235,7 +235,7 @@ def test_slow_pressure_ramp_under_no_slip_approaches_the_static_band_and_lame(ge
     static = lame_clamped(P0) if tube else STATIC
     devs = []
     for ramp in (0.01, 0.02, 0.04):
-        deviation, end, _, s = quasi_static(tmp_path / f"{geometry}{ramp}", ramp, f"geometry.kind={geometry}",
+        deviation, end, _, s = quasi_static(tmp_path / f"{geometry}{ramp}", ramp, f"geometry.model={geometry}",
                                             static=static, lumen="no-slip")
         devs.append(deviation)
         assert np.max(np.abs(s["dz_mid"])) < 1e-3 * static
@@ -283,7 +283,7 @@ def test_no_slip_ledger_closes_for_every_coupler_scheme_and_geometry(coupler, ge
     Measured (12 × 3 cells, 20 steps): ledgers ≤ 1.8e-12 relative; max |d_z| at z = 1 is 61–66 % of max η there
     (planar), 106–117 % (tube): the band's lumen moves axially as much as radially under the pulse."""
     code, summary, s = run(tmp_path / coupler, *COARSE, f"coupler={NO_SLIP[coupler]}",
-                           f"geometry.kind={geometry}")
+                           f"geometry.model={geometry}")
     assert code == 0 and summary["status"] == "ok" and summary["steps"] == 20
     assert np.all(s["energy.relative_residual"] <= 1e-9)
     assert np.max(np.abs(s["dz_z1"])) > 0.1 * np.max(np.abs(s["eta_z1"]))
@@ -293,7 +293,7 @@ def test_no_slip_ledger_closes_for_every_coupler_scheme_and_geometry(coupler, ge
 def test_no_slip_implicit_dirichlet_neumann_agrees_with_monolithic(geometry, tmp_path):
     """Dirichlet data in both components against shared DOFs in both.  Measured (tolerance 1e-11, ~15 IQN-ILS
     iterations a step): η gap 1.8e-10 planar, 9.4e-10 in the tube; d_z gap 4.7e-12, 4.8e-12."""
-    sets = (*COARSE, f"geometry.kind={geometry}")
+    sets = (*COARSE, f"geometry.model={geometry}")
     _, _, dn = run(tmp_path / "dn", *sets, f"coupler={NO_SLIP['dn-implicit-cn']}")
     _, _, mono = run(tmp_path / "mono", *sets, f"coupler={NO_SLIP['monolithic-cn']}")
     assert gap(dn, mono) < 1e-8

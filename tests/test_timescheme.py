@@ -34,7 +34,7 @@ TINY = ("geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.002",
 
 
 def theta(value: float) -> str:
-    return f'{{kind="theta",theta={value}}}'
+    return f'{{model="theta",theta={value}}}'
 
 
 def single_stage(registry: Registry) -> list[str]:
@@ -94,13 +94,13 @@ def test_a_scheme_is_validated_by_name_and_by_its_parameters():
     found = problems('coupler.scheme="crank-nicholson"')
     assert found == ["coupler.scheme = 'crank-nicholson': expected one of 'backward-euler', 'bdf2', 'crank-nicolson', "
                      "'theta', 'tr-bdf2'; did you mean 'crank-nicolson'? (from --set)"], found
-    found = problems('coupler.scheme={kind="thetta",theta=0.7}')
+    found = problems('coupler.scheme={model="thetta",theta=0.7}')
     assert len(found) == 1 and "did you mean 'theta'?" in found[0], found
     found = problems('coupler.scheme={theta=0.7}')
     assert len(found) == 1 and found[0].startswith("coupler.scheme = {'theta': 0.7}: expected the name of a scheme"), found
     # installed only: the test's scheme is unknown without its module
     assert problems(f"coupler.scheme={theta(0.75)}", registry=Registry.load()) == [
-        "coupler.scheme = {'kind': 'theta', 'theta': 0.75}: expected one of 'backward-euler', 'bdf2', "
+        "coupler.scheme = {'model': 'theta', 'theta': 0.75}: expected one of 'backward-euler', 'bdf2', "
         "'crank-nicolson', 'tr-bdf2' (from --set)"]
 
 
@@ -234,4 +234,4 @@ def test_plugins_lists_the_schemes_and_a_scheme_s_parameters(capsys):
     assert out.startswith("scheme theta (theta_scheme") and any(line.split()[:3] == ["theta", "1", "1.0"]
                                                                 for line in out.splitlines())
     assert main(["plugins", "monolithic"]) == 0
-    assert "the name of a scheme plugin, or a table {kind = name, ...}" in capsys.readouterr().out
+    assert "the name of a scheme plugin, or a table {model = name, ...}" in capsys.readouterr().out

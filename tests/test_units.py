@@ -22,8 +22,8 @@ def test_values_with_units_are_read_in_cgs():
         "layers[1].young": "400 kPa",                       # 4e6 dyn/cm²
         "layers[0].thickness": "50 µm", "layers[2].thickness": "0.3 mm",
         "geometry.radius": "3 mm", "fluid.density": "1060 kg/m^3", "fluid.viscosity": "3.5 cP",
-        "loads.inlet": {"kind": "flow-rate", "flow": "6 mL/s"},
-        "loads.outlet": {"kind": "windkessel", "proximal": "1.8 mmHg*s/mL", "capacitance": "0.04 mL/mmHg",
+        "loads.inlet": {"model": "flow-rate", "flow": "6 mL/s"},
+        "loads.outlet": {"model": "windkessel", "proximal": "1.8 mmHg*s/mL", "capacitance": "0.04 mL/mmHg",
                          "distal": "11 mmHg s/mL", "initial_pressure": "67.4 mmHg"},
         "time.dt": "1 ms"})
     r = case.resolved
@@ -31,7 +31,7 @@ def test_values_with_units_are_read_in_cgs():
     assert r["layers"][1]["young"] == 4e6 and r["layers"][0]["thickness"] == 0.005
     assert r["layers"][2]["thickness"] == 0.03 and r["geometry"]["radius"] == 0.3
     assert r["fluid"]["density"] == 1.06 and r["fluid"]["viscosity"] == 0.035
-    assert r["loads"]["inlet"]["flow"] == {"kind": "constant", "value": 6.0}  # 1 mL = 1 cm³
+    assert r["loads"]["inlet"]["flow"] == {"model": "constant", "value": 6.0}  # 1 mL = 1 cm³
     outlet = r["loads"]["outlet"]
     assert outlet["proximal"] == pytest.approx(1.8 * MMHG, rel=1e-14)
     assert outlet["capacitance"] == pytest.approx(0.04 / MMHG, rel=1e-14)

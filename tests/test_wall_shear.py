@@ -139,7 +139,7 @@ def test_womersley_wall_shear_converges_at_the_gradients_order(kind, order, expe
 def test_a_run_writes_the_wall_shear_stress_every_step_and_in_its_snapshots(tmp_path, kind):
     """The bundled rigid Poiseuille case (in the planar channel and as a tube): ``wss_lumen.csv`` at the lumen's
     vertices, headers without float noise, its last row 3μQ/R² (4μQ/(πR³)) of the run's own outflow."""
-    result, data = run_case_file("poiseuille-rigid", tmp_path, f"geometry.kind={kind}")
+    result, data = run_case_file("poiseuille-rigid", tmp_path, f"geometry.model={kind}")
     assert result.status == "ok", result.reason
     header = (tmp_path / "wss_lumen.csv").read_text().splitlines()[0].split(",")
     z = np.linspace(0.0, 6.0, 25)

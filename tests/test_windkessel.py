@@ -30,7 +30,7 @@ def run(tmp_path, case, *sets):
 
 
 def rcr(proximal, capacitance, distal, distal_pressure=0.0):
-    return (f'loads.outlet={{kind="windkessel",proximal={proximal},capacitance={capacitance},distal={distal},'
+    return (f'loads.outlet={{model="windkessel",proximal={proximal},capacitance={capacitance},distal={distal},'
             f'distal_pressure={distal_pressure}}}')
 
 
@@ -166,7 +166,7 @@ def test_bad_windkessel_parameters_are_clear_errors():
     with pytest.raises(CaseError, match=r"loads.outlet.capacitance = -1.0: expected a number > 0.0"):
         load_case(CASES / "poiseuille-rigid.toml", [rcr(1.0, -1.0, 1.0)])
     with pytest.raises(CaseError, match=r"loads.outlet.distal: missing"):
-        load_case(CASES / "poiseuille-rigid.toml", ['loads.outlet={kind="windkessel",proximal=1.0,capacitance=1.0}'])
+        load_case(CASES / "poiseuille-rigid.toml", ['loads.outlet={model="windkessel",proximal=1.0,capacitance=1.0}'])
     # a Windkessel needs a fluid: the wall-only coupler refuses it
     with pytest.raises(CaseError, match=r"loads.outlet is set, but structure-only does not apply it"):
         load_case(CASES / "four-layer-wall.toml", [rcr(1.0, 1.0, 1.0)])

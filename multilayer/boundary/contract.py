@@ -86,7 +86,7 @@ class BoundaryCondition(ABC):
     Subclass it, give :meth:`traction` (and, for a condition with memory,
     :meth:`initial_state`, :meth:`advance`, :meth:`energy`), and register it
     as a boundary plugin (``multilayer_boundaries``); a case chooses it as
-    ``[loads] outlet = {kind = "my-condition", ...}``.
+    ``[loads] outlet = {model = "my-condition", ...}``.
     """
 
     #: True when the end's pressure may depend on its flux (a resistance): the fluid's system then holds

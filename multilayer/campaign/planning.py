@@ -33,6 +33,7 @@ from multilayer.case.casefile import load_case
 from multilayer.case.grid import Setting, combinations, vary_axis
 from multilayer.case.keys import parse_value, split_values
 from multilayer.plugin.problems import CaseError, Problem, did_you_mean
+from multilayer.plugin.records import MODEL
 from multilayer.plugin.registry import Registry
 from multilayer.results.folder import holds_finished_run
 from multilayer.results.reading import RunData, read_run
@@ -70,8 +71,8 @@ def _text(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return f"{value:g}"
-    if isinstance(value, Mapping) and "kind" in value:  # a plugin with its parameters: kind(key=value,...)
-        return f"{value['kind']}(" + ",".join(f"{k}={_text(v)}" for k, v in value.items() if k != "kind") + ")"
+    if isinstance(value, Mapping) and MODEL in value:  # a plugin with its parameters: model(key=value,...)
+        return f"{value[MODEL]}(" + ",".join(f"{k}={_text(v)}" for k, v in value.items() if k != MODEL) + ")"
     return str(value)
 
 
@@ -82,7 +83,7 @@ def coupler_label(model: str, params: Mapping[str, Any]) -> str:
     'kinematic-splitting'
     >>> coupler_label("monolithic", {"scheme": "crank-nicolson", "beta": 0.25})
     'monolithic[scheme=crank-nicolson,beta=0.25]'
-    >>> coupler_label("monolithic", {"scheme": {"kind": "theta", "theta": 0.75}})
+    >>> coupler_label("monolithic", {"scheme": {"model": "theta", "theta": 0.75}})
     'monolithic[scheme=theta(theta=0.75)]'
     """
     if not params:

@@ -27,6 +27,7 @@ import attrs
 import numpy as np
 
 from multilayer.case.model import LayerSpec
+from multilayer.plugin.records import MODEL
 from multilayer.plugin.registry import Registry
 from multilayer.results.reading import finite_rows
 from multilayer.scene.setup import build_layer
@@ -238,11 +239,11 @@ def loop_speed(t: np.ndarray, pressure: np.ndarray, eta: np.ndarray, radius: flo
 def radial_power(geometry: Mapping[str, Any], registry: Registry) -> int | None:
     """k of the measure c rᵏ of the resolved ``[geometry]`` (0 planar, 1 a tube); None when its plugin cannot be
     built here."""
-    found = registry.find("geometry", geometry.get("kind", "planar"))
+    found = registry.find("geometry", geometry.get(MODEL, "planar"))
     if found is None:
         return None
     try:
-        shape = found.record.factory(**{k: v for k, v in geometry.items() if k not in ("kind", "length", "radius")})
+        shape = found.record.factory(**{k: v for k, v in geometry.items() if k not in (MODEL, "length", "radius")})
     except (TypeError, ValueError):
         return None
     return int(shape.radial_power)
@@ -256,8 +257,8 @@ def wall_stack(case: Mapping[str, Any], registry: Registry) -> Stack:
     when the case does not describe a wall.
     """
     geometry, mesh = case["geometry"], case["mesh"]
-    found = registry.get("geometry", geometry.get("kind", "planar"))
-    shape = found.record.factory(**{k: v for k, v in geometry.items() if k not in ("kind", "length", "radius")})
+    found = registry.get("geometry", geometry.get(MODEL, "planar"))
+    shape = found.record.factory(**{k: v for k, v in geometry.items() if k not in (MODEL, "length", "radius")})
     specs = []
     for i, spec in enumerate(case["layers"]):
         record = registry.get("layer", spec["model"]).record

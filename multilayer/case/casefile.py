@@ -62,6 +62,7 @@ from multilayer.case.schema import (
     reserved_column,
     reserved_problem,
 )
+from multilayer.case.spelling import old_model_keys
 from multilayer.case.trial_walls import layer_problems, static_start_problems
 from multilayer.functions.domain import Domain, judge
 from multilayer.functions.formula import Formula, FormulaError
@@ -76,7 +77,7 @@ from multilayer.plugin.problems import (
     check_params,
     did_you_mean,
 )
-from multilayer.plugin.records import Param
+from multilayer.plugin.records import MODEL, Param
 from multilayer.plugin.registry import Registry
 from multilayer.wall.checks import abstract_problem, raised, type_problem
 
@@ -174,6 +175,8 @@ class _Validator:
     def case(self, data: Mapping[str, Any]) -> Case:
         if not isinstance(data, Mapping):
             raise CaseError([Problem("case", data, "expected a table of sections")])
+        data, old = old_model_keys(data)  # reported, then read as the model they name: the rest is checked too
+        self.add(old)
         self.add(
             Problem(key, value, "unknown section", did_you_mean(key, SECTIONS))
             for key, value in data.items()
@@ -317,7 +320,7 @@ class _Validator:
                 continue
             where = f"{path}.{param.name}"
             table = isinstance(value, Mapping)
-            name = value["kind"] if table else value
+            name = value[MODEL] if table else value
             found = self.registry.find(param.plugin, name)
             if found is None:
                 names = self.registry.names(param.plugin)
@@ -326,11 +329,11 @@ class _Validator:
                             else f"no {param.plugin} plugin is installed")
                 self.problems.append(Problem(where, value, expected, hint.removeprefix("; ")))
                 continue
-            checked, problems = check_params(value if table else {}, found.record.params, where, extra=("kind",))
+            checked, problems = check_params(value if table else {}, found.record.params, where, extra=(MODEL,))
             self.add(problems)
             built = None if problems else self.construct(found, checked, where, param.plugin)
             if built is not None and (table or found.record.params):
-                params[param.name] = {"kind": name, **checked}
+                params[param.name] = {MODEL: name, **checked}
 
     def construct(self, found: Any, params: dict[str, Any], path: str, kind: str = "") -> Any:
         """Build the plugin once: only its factory can check constraints across parameters.
@@ -427,12 +430,12 @@ class _Validator:
     def geometry(self, data: Mapping[str, Any]) -> tuple[dict[str, Any], Shape | None]:
         """The ``[geometry]`` values (its plugin's parameters under ``params``) and the geometry, built."""
         table = data.get("geometry", MISSING)
-        kind = table.get("kind", "planar") if isinstance(table, Mapping) else "planar"
-        found = self.registry.find("geometry", kind) if isinstance(kind, str) else None
+        name = table.get(MODEL, "planar") if isinstance(table, Mapping) else "planar"
+        found = self.registry.find("geometry", name) if isinstance(name, str) else None
         if found is None:
             names = self.registry.names("geometry")
-            hint = did_you_mean(kind, names) if isinstance(kind, str) else ""
-            self.problems.append(Problem("geometry.kind", kind, "no such geometry plugin",
+            hint = did_you_mean(name, names) if isinstance(name, str) else ""
+            self.problems.append(Problem(f"geometry.{MODEL}", name, "no such geometry plugin",
                                          hint or "available: " + (", ".join(names) or "none installed")))
             return self.section(data, "geometry", GEOMETRY[:2]), None
         own = found.record.params
@@ -442,7 +445,7 @@ class _Validator:
         shape = self.construct(found, params, "geometry")
         if self.mark() != mark or not isinstance(shape, Shape):
             if self.mark() == mark:
-                self.problems.append(Problem("geometry.kind", kind, "the plugin's factory returned "
+                self.problems.append(Problem(f"geometry.{MODEL}", name, "the plugin's factory returned "
                                              f"{type(shape).__name__}, not a Geometry"))
             shape = None
         return {**values, "params": params}, shape

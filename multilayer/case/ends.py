@@ -1,8 +1,8 @@
 """The open ends of the fluid in a case file: each end's condition, looked up in the registry and built.
 
 An end is written as a number (a constant pressure), a string (a pressure
-formula in t) or a table ``{kind = "<boundary condition>", ...}`` under
-``[loads] inlet`` / ``outlet``.  The kind is a boundary plugin
+formula in t) or a table ``{model = "<boundary condition>", ...}`` under
+``[loads] inlet`` / ``outlet``.  The model is a boundary plugin
 (``multilayer plugins``); its parameters are checked against the plugin's
 schema, then its factory builds the condition (the factory's own verdict
 on the values comes back as problems at the end's key path).  Two ends
@@ -26,7 +26,9 @@ from multilayer.plugin.problems import (
     Problem,
     check_params,
     did_you_mean,
+    old_model_problems,
 )
+from multilayer.plugin.records import MODEL
 from multilayer.plugin.registry import Registry
 from multilayer.wall.checks import abstract_problem, raised
 
@@ -34,8 +36,8 @@ from multilayer.wall.checks import abstract_problem, raised
 END_KEYS = ("inlet", "outlet")
 
 
-def end_kind(spec: Any, path: str) -> tuple[str | None, list[Problem]]:
-    """The boundary-condition kind a case-file value names: a number is ``constant``, a string ``formula``."""
+def end_model(spec: Any, path: str) -> tuple[str | None, list[Problem]]:
+    """The boundary condition a case-file value names: a number is ``constant``, a string ``formula``."""
     if isinstance(spec, int | float) and not isinstance(spec, bool):
         if not math.isfinite(spec):
             return None, [Problem(path, spec, "expected a finite pressure (dyn/cm²)")]
@@ -43,12 +45,14 @@ def end_kind(spec: Any, path: str) -> tuple[str | None, list[Problem]]:
     if isinstance(spec, str):
         return "formula", []
     if not isinstance(spec, Mapping):
-        return None, [Problem(path, spec, "expected a number, a formula in t or a table {kind = ...}")]
-    kind = spec.get("kind", MISSING)
-    if not isinstance(kind, str):
-        expected = "missing; expected a boundary condition kind" if kind is MISSING else "expected a kind's name"
-        return None, [Problem(f"{path}.kind", kind, expected)]
-    return kind, []
+        return None, [Problem(path, spec, "expected a number, a formula in t or a table {model = ...}")]
+    if old := old_model_problems(spec, path):
+        return None, old
+    name = spec.get(MODEL, MISSING)
+    if not isinstance(name, str):
+        expected = "expected the name of a boundary condition"
+        return None, [Problem(f"{path}.{MODEL}", name, ("missing; " if name is MISSING else "") + expected)]
+    return name, []
 
 
 def build_end(spec: Any, path: str, registry: Registry, base_dir: Path | str = ".",
@@ -59,45 +63,45 @@ def build_end(spec: Any, path: str, registry: Registry, base_dir: Path | str = "
     Raises
     ------
     CaseError
-        With every problem at the end's key path: an unknown kind (with the
+        With every problem at the end's key path: an unknown model (with the
         nearest name), a parameter out of its bounds, the factory's verdict.
     """
-    kind, problems = end_kind(spec, path)
-    if kind is None:
+    name, problems = end_model(spec, path)
+    if name is None:
         raise CaseError(problems)
-    found = registry.find("boundary", kind)
+    found = registry.find("boundary", name)
     if found is None:
         names = registry.names("boundary")
-        hint = did_you_mean(kind, names) or "kinds: " + ", ".join(names)
-        raise CaseError([Problem(f"{path}.kind", kind, "no such boundary condition kind", hint)])
+        hint = did_you_mean(name, names) or "available: " + ", ".join(names)
+        raise CaseError([Problem(f"{path}.{MODEL}", name, "no such boundary condition", hint)])
     record = found.record
     params: dict[str, Any] = {}
     if isinstance(spec, Mapping):
-        params, problems = check_params(spec, record.params, path, extra=("kind",))
+        params, problems = check_params(spec, record.params, path, extra=(MODEL,))
         if problems:
             raise CaseError(problems)
     problem = abstract_problem(record.factory)
     if problem:
-        raise CaseError([Problem(path, MISSING, f"{kind}: {problem}")])
+        raise CaseError([Problem(path, MISSING, f"{name}: {problem}")])
     context = BuildContext(path, spec, str(base_dir), dict(constants or {}), end)
     try:
         condition = record.factory(**params, context=context) if record.context else record.factory(**params)
     except CaseError:
         raise
     except ValueError as exc:  # the factory's verdict on the values
-        raise CaseError([Problem(path, MISSING, f"{kind}: {exc}")]) from None
+        raise CaseError([Problem(path, MISSING, f"{name}: {exc}")]) from None
     except Exception as exc:  # the plugin's own code failed, not the case
-        raise CaseError([Problem(path, MISSING, f"{kind}: the plugin's factory raised {raised(exc)}")]) from None
+        raise CaseError([Problem(path, MISSING, f"{name}: the plugin's factory raised {raised(exc)}")]) from None
     if not isinstance(condition, BoundaryCondition):
-        raise CaseError([Problem(path, MISSING, f"{kind}: the factory returned {type(condition).__name__}, "
+        raise CaseError([Problem(path, MISSING, f"{name}: the factory returned {type(condition).__name__}, "
                                                 f"not a BoundaryCondition")])
-    return condition, condition.resolved() or {"kind": kind, **params}
+    return condition, condition.resolved() or {MODEL: name, **params}
 
 
 def closed_volume_problems(case: Any, coupler: Any, resolved: Mapping[str, Mapping[str, Any]]) -> list[Problem]:
     """:func:`given_volume_problems` of ``case``, which may have placeholders (:mod:`multilayer.case.partial`):
     when the coupler (``coupler``; None: it could not be built) says how the fluid sees the wall, and it, both
-    ends and the parts it reads to say so were built.  ``resolved`` holds each end's resolved data (its kind)."""
+    ends and the parts it reads to say so were built.  ``resolved`` holds each end's resolved data (its model)."""
     conditions = {end: getattr(case.loads, end) for end in END_KEYS}
     fluid_wall = getattr(coupler, "fluid_wall", None)  # (a coupler is known by its energy and evolve alone)
     if fluid_wall is None or case.fluid is None or any(isinstance(c, Unbuilt) for c in conditions.values()):
@@ -106,15 +110,15 @@ def closed_volume_problems(case: Any, coupler: Any, resolved: Mapping[str, Mappi
         wall = fluid_wall(case)
     except NotBuilt:
         return []
-    return given_volume_problems(conditions, {end: resolved[end].get("kind") for end in END_KEYS}, wall,
+    return given_volume_problems(conditions, {end: resolved[end].get(MODEL) for end in END_KEYS}, wall,
                                  case.coupler.model)
 
 
-def given_volume_problems(conditions: Mapping[str, BoundaryCondition], kinds: Mapping[str, str], wall: str,
+def given_volume_problems(conditions: Mapping[str, BoundaryCondition], models: Mapping[str, str], wall: str,
                           coupler: str) -> list[Problem]:
     """Both ends prescribing their flux (a flow rate each) around a fluid that moves no wall.
 
-    ``conditions`` and ``kinds`` are each end's condition and its kind's name, ``wall`` how the fluid sees the
+    ``conditions`` and ``models`` are each end's condition and its model's name, ``wall`` how the fluid sees the
     wall (:meth:`Coupler.fluid_wall`), ``coupler`` the coupler's name.  Under a compliant wall the wall stores
     the difference of the two flow rates and its stiffness sets the pressure; under a rigid or given wall
     (:data:`~multilayer.fluid.contract.GIVEN_WALLS`) the lumen's volume is data, so the two rates are tied to
@@ -124,7 +128,7 @@ def given_volume_problems(conditions: Mapping[str, BoundaryCondition], kinds: Ma
     >>> flow = SimpleNamespace(constraint=True)  # a flow-rate end
     >>> print(*given_volume_problems({"inlet": flow, "outlet": flow}, {"inlet": "flow-rate", "outlet": "flow-rate"},
     ...                              "rigid", "fluid-only"))  # doctest: +ELLIPSIS
-    loads.outlet.kind = 'flow-rate': a flow rate at both ends (loads.inlet.kind = 'flow-rate' too) of a fluid in \
+    loads.outlet.model = 'flow-rate': a flow rate at both ends (loads.inlet.model = 'flow-rate' too) of a fluid in \
 a rigid wall ('fluid-only'): the volume between them is fixed, so what flows in at one end must flow out at the \
 other at every step, and no end sets the level of the pressure; expected a flow rate at one end at most; ...
     """
@@ -136,8 +140,8 @@ other at every step, and no end sets the level of the pressure; expected a flow 
               "prescribed": f"whose every step {coupler!r} gives the wall's motion: the volume between them "
                             f"changes only as that motion does, so the two flow rates must add up to its change at "
                             f"every step"}
-    return [Problem(f"loads.{outlet}.kind", kinds[outlet],
-                    f"a flow rate at both ends (loads.{inlet}.kind = {kinds[inlet]!r} too) of a fluid {volume[wall]}, "
+    return [Problem(f"loads.{outlet}.{MODEL}", models[outlet],
+                    f"a flow rate at both ends (loads.{inlet}.{MODEL} = {models[inlet]!r} too) of a fluid {volume[wall]}, "
                     f"and no end sets the level of the pressure; expected a flow rate at one end at most",
                     "give the other end a pressure, a resistance or a windkessel, or couple a compliant wall "
                     "([[layers]] with 'monolithic' or 'kinematic-splitting'), which stores the difference")]

@@ -21,7 +21,7 @@ from multilayer.numerics.linsolve import Reuse
 class Geometry:
     length: float  #: L (cm), channel length
     radius: float  #: R (cm), reference radius of the lumen
-    kind: str = "planar"  #: the geometry plugin (``[geometry] kind``): what the meridian plane stands for
+    model: str = "planar"  #: the geometry plugin (``[geometry] model``): what the meridian plane stands for
     params: Mapping[str, Any] = attrs.field(factory=dict, eq=False)  #: its own parameters
 
 
@@ -117,8 +117,9 @@ class Loads:
         when each of the others divides it (to 1e-9), so that every periodic load repeats after T; None when no
         load repeats or two periods have no common cycle.  Loads that do not repeat (a constant) are left out.
 
+        >>> from types import SimpleNamespace
         >>> from multilayer.functions.loads import ConstantPressure as C, SinePressure as S
-        >>> from multilayer_plugins.pressure import PressureEnd as E
+        >>> E = lambda load: SimpleNamespace(histories=lambda: (load,))  # an end that prescribes one history
         >>> loads = lambda *p: Loads(E(p[0]), E(p[1]), C(0.0), C(0.0))
         >>> loads(S(1.0, 1.0), C(0.0)).period(), loads(S(1.0, 1.0), S(1.0, 3.0)).period(), loads(C(1.0), C(0.0)).period()
         (1.0, 1.0, None)

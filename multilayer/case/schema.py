@@ -21,7 +21,7 @@ SECTIONS = ("title", "geometry", "mesh", "time", "fluid", "layers", "coupler", "
 GEOMETRY = (
     Param("length", "L", "cm", gt=0.0, doc="channel length"),
     Param("radius", "R", "cm", gt=0.0, doc="reference radius of the lumen"),
-    Param("kind", type=str, default="planar", doc="the geometry plugin: what the (z, r) plane stands for"),
+    Param("model", type=str, default="planar", doc="the geometry plugin: what the (z, r) plane stands for"),
 )
 # mesh.nz, mesh.nr (and a band's cells) have no bound here: the memory check bounds them against the machine
 # (multilayer.case.resources.size_problems), with a message that says how much memory they would need

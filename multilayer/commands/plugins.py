@@ -12,6 +12,16 @@ from multilayer.plugin.problems import describe
 from multilayer.plugin.records import Param
 from multilayer.plugin.registry import Registry, nearest
 
+#: how a case file names a plugin of each kind: always by ``model``
+CASE_LINES = {
+    "layer": '[[layers]] model = "{name}"',
+    "fluid": '[fluid] model = "{name}"',
+    "coupler": '[coupler] model = "{name}"',
+    "geometry": '[geometry] model = "{name}"',
+    "boundary": '[loads] inlet = {{ model = "{name}", ... }} (or outlet)',
+    "scheme": '[coupler] scheme = "{name}", or scheme = {{ model = "{name}", ... }} with its parameters',
+}
+
 
 @attrs.frozen
 class PluginsOptions:
@@ -45,6 +55,7 @@ def plugins(options: PluginsOptions) -> int:
             return INVALID
         for entry in chosen:
             print(f"{entry.kind} {entry.name} ({entry.package} {entry.version}): {entry.record.doc}")
+            print("in a case file: " + CASE_LINES[entry.kind].format(name=entry.name))
             rows = [("name", "unit", "default", "accepts", "doc")]
             rows += [_param_row(p) for p in entry.record.params]
             print(table(rows))

@@ -377,10 +377,11 @@ def alternating(k: list[float], scheme: TimeScheme) -> float:
     ωΔt ≫ 1), seen at xⁿ = 1: −8/13 for Crank–Nicolson's even steps; its size
     depends on the step ratios only.
 
-    >>> from multilayer.numerics.timescheme import named
-    >>> cn = named("crank-nicolson")
-    >>> round(alternating([0.1, 0.1, 0.1], cn), 12), round(alternating([0.2, 0.1, 0.1], cn), 12)
-    (-0.615384615385, -2.571428571429)
+    >>> class Midpoint:  # Crank–Nicolson's Milne factor on even steps (its own: multilayer_plugins/schemes)
+    ...     def milne(self, k):
+    ...         return 1.0 / 13.0
+    >>> round(alternating([0.1, 0.1, 0.1], Midpoint()), 12), round(alternating([0.2, 0.1, 0.1], Midpoint()), 12)
+    (-0.615384615385, -1.384615384615)
     """
     return float(local_error(np.array(-1.0), [np.array(1.0), np.array(-1.0), np.array(1.0)], k, scheme))
 
@@ -401,8 +402,10 @@ def unechoed(e: np.ndarray, before: np.ndarray | None, k: list[float],
     0.78–1.10 of it at step ratios 2–0.8, and larger where steps shrink faster
     (1.4 at 0.5) (theory §4, "The echo of an undamped mode").
 
-    >>> from multilayer.numerics.timescheme import named
-    >>> k, cn = [0.1, 0.1, 0.1], named("crank-nicolson")
+    >>> class Midpoint:  # Crank–Nicolson's Milne factor on even steps (its own: multilayer_plugins/schemes)
+    ...     def milne(self, k):
+    ...         return 1.0 / 13.0
+    >>> k, cn = [0.1, 0.1, 0.1], Midpoint()
     >>> mu = alternating(k, cn)
     >>> unechoed(np.array([1.0, 2.0]), np.array([1.0, -2.0]) / mu, k, cn)[0]     # smooth, alternating
     array([1., 0.])

@@ -287,15 +287,19 @@ def step_force(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray
       touch, so that the correction stays on the layer.
 
     >>> import scipy.sparse as sp
-    >>> from multilayer.numerics.timescheme import named
+    >>> from multilayer.numerics.timescheme import LinearMultistep
     >>> from multilayer.wall.layer import NonlinearForms
+    >>> class Rule(LinearMultistep):  # a scheme's weights: the midpoint rule, BDF2
+    ...     def __init__(self, name, alpha, beta):
+    ...         self.name, self.alpha, self.beta = name, alpha, beta
+    >>> midpoint, bdf2 = Rule("midpoint", (1.0, -1.0), (0.5, 0.5)), Rule("bdf2", (1.5, -2.0, 0.5), (1.0, 0.0, 0.0))
     >>> class Quartic(NonlinearForms):  # W = ¼ Σ d⁴
     ...     def elastic(self, d): return 0.25 * float(np.sum(d**4))
     ...     def force(self, d): return d**3
     >>> forms = Quartic(sp.identity(2, format="csr"), sp.csr_matrix((2, 2)), sp.csr_matrix((2, 2)))
     >>> d0, d1 = np.array([0.0, 1.0]), np.array([1.0, 2.0])
-    >>> f = step_force(named("crank-nicolson"), forms, [d1, d0])
-    >>> float(f @ (d1 - d0)) == forms.elastic(d1) - forms.elastic(d0), step_force(named("bdf2"), forms, [d1, d0, d0])
+    >>> f = step_force(midpoint, forms, [d1, d0])
+    >>> float(f @ (d1 - d0)) == forms.elastic(d1) - forms.elastic(d0), step_force(bdf2, forms, [d1, d0, d0])
     (True, array([1., 8.]))
     """
     if forms.linear or scheme.beta[0] == 1.0:

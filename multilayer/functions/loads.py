@@ -8,7 +8,7 @@ sine, piecewise-linear table) and a 5-point Gauss–Legendre rule otherwise
 
 A case file writes a load as a number (constant, in CGS), a number with
 its unit (``"80 mmHg"``, ``"6 mL/s"``: a constant), a string (formula in
-``t``) or a table ``{kind = "...", ...}``; :func:`load_from_spec` turns any
+``t``) or a table ``{model = "...", ...}``; :func:`load_from_spec` turns any
 of them into a :class:`PressureLoad` or raises a
 :class:`~multilayer.plugin.problems.CaseError` naming the key path.  The
 same kinds serve another quantity given as a function of t (a flow rate):
@@ -36,8 +36,9 @@ from multilayer.plugin.problems import (
     Problem,
     check_params,
     did_you_mean,
+    old_model_problems,
 )
-from multilayer.plugin.records import Param
+from multilayer.plugin.records import MODEL, Param
 
 #: the unit of the values of the load kinds (:data:`KINDS`): a pressure's
 PRESSURE_UNIT = "dyn/cm²"
@@ -45,16 +46,16 @@ PRESSURE_UNIT = "dyn/cm²"
 
 class LoadSpec(ABC):
     """The type of a plugin parameter whose value is a load as a case writes it, for :func:`load_from_spec`:
-    a number, a formula in t or a table ``{kind = ...}`` (``Param("flow", type=LoadSpec)``).
+    a number, a formula in t or a table ``{model = ...}`` (``Param("flow", type=LoadSpec)``).
 
-    >>> isinstance(2.0, LoadSpec), isinstance("sin(t)", LoadSpec), isinstance({"kind": "sine"}, LoadSpec)
+    >>> isinstance(2.0, LoadSpec), isinstance("sin(t)", LoadSpec), isinstance({"model": "sine"}, LoadSpec)
     (True, True, True)
     >>> isinstance(True, LoadSpec), isinstance([1.0], LoadSpec)
     (False, False)
     """
 
     #: what a value of this type is, in the words of a validation message
-    noun: ClassVar[str] = "a number, a formula in t or a table {kind = ...}"
+    noun: ClassVar[str] = "a number, a formula in t or a table {model = ...}"
 
     @classmethod
     def __subclasshook__(cls, other: type) -> bool:
@@ -73,7 +74,8 @@ def is_zero(load: PressureLoad | None) -> bool:
 class PressureLoad(ABC):
     """A pressure history P(t) in dyn/cm²."""
 
-    kind: ClassVar[str]
+    #: its name in a case file (``model = "cosine-pulse"``)
+    model: ClassVar[str]
 
     @abstractmethod
     def value(self, t: Any) -> Any:
@@ -110,7 +112,7 @@ class ConstantPressure(PressureLoad):
     3.0
     """
 
-    kind: ClassVar[str] = "constant"
+    model: ClassVar[str] = "constant"
     value_: float = attrs.field(converter=float, alias="value")
 
     def value(self, t: Any) -> Any:
@@ -123,7 +125,7 @@ class ConstantPressure(PressureLoad):
         return self.value_
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "value": self.value_}
+        return {MODEL: self.model, "value": self.value_}
 
 
 @attrs.frozen
@@ -137,7 +139,7 @@ class CosinePulse(PressureLoad):
     (2.0, 1.0, 0.0)
     """
 
-    kind: ClassVar[str] = "cosine-pulse"
+    model: ClassVar[str] = "cosine-pulse"
     amplitude: float = attrs.field(converter=float)  #: P_max (dyn/cm²)
     duration: float = attrs.field(converter=float)  #: t_max (s)
 
@@ -154,7 +156,7 @@ class CosinePulse(PressureLoad):
         return self._antiderivative(t1) - self._antiderivative(t0)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "amplitude": self.amplitude, "duration": self.duration}
+        return {MODEL: self.model, "amplitude": self.amplitude, "duration": self.duration}
 
     def next_breakpoint(self, t: float) -> float:
         """The pulse's start and end (its second derivative jumps there).
@@ -175,7 +177,7 @@ class SinePressure(PressureLoad):
     5.0
     """
 
-    kind: ClassVar[str] = "sine"
+    model: ClassVar[str] = "sine"
     amplitude: float = attrs.field(converter=float)  #: dyn/cm²
     frequency: float = attrs.field(converter=float)  #: Hz
     mean: float = attrs.field(default=0.0, converter=float)  #: dyn/cm²
@@ -191,7 +193,7 @@ class SinePressure(PressureLoad):
         return self.mean * (t1 - t0) + self.amplitude * swing
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "amplitude": self.amplitude, "frequency": self.frequency,
+        return {MODEL: self.model, "amplitude": self.amplitude, "frequency": self.frequency,
                 "mean": self.mean, "phase": self.phase}
 
     def cycle(self) -> float:
@@ -227,7 +229,7 @@ class TablePressure(PressureLoad):
     (1.0, 2.0, inf)
     """
 
-    kind: ClassVar[str] = "table"
+    model: ClassVar[str] = "table"
     times: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, dtype=float))
     values: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, dtype=float))
     period: float | None = None  #: s; None: no repetition
@@ -327,7 +329,7 @@ class TablePressure(PressureLoad):
     def to_dict(self) -> dict[str, Any]:
         # the default interpolation is left out: a linear table's resolved case (and its hash) is what it was
         cubic = {"interpolation": self.interpolation} if self.interpolation != "linear" else {}
-        return {"kind": self.kind, "file": self.file, "period": self.period, "scale": self.scale,
+        return {MODEL: self.model, "file": self.file, "period": self.period, "scale": self.scale,
                 "sha256": self.sha256, **cubic}
 
 
@@ -373,7 +375,7 @@ class FormulaPressure(PressureLoad):
     1.0
     """
 
-    kind: ClassVar[str] = "formula"
+    model: ClassVar[str] = "formula"
     formula: Formula
 
     def value(self, t: Any) -> Any:
@@ -384,7 +386,7 @@ class FormulaPressure(PressureLoad):
         return half * float(_GAUSS_W @ self.formula(t=t0 + half * (_GAUSS_X + 1.0)))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "expr": str(self.formula)}
+        return {MODEL: self.model, "expr": str(self.formula)}
 
 
 #: Parameters of each load kind written as a table in a case file.
@@ -429,18 +431,22 @@ def load_from_spec(
     Examples
     --------
     >>> load_from_spec(0, "loads.outlet").to_dict()
-    {'kind': 'constant', 'value': 0.0}
+    {'model': 'constant', 'value': 0.0}
     >>> round(load_from_spec("1e4*t", "loads.inlet").average(0.0, 2.0), 9)
     10000.0
     >>> load_from_spec("10 mmHg", "loads.inlet").to_dict()
-    {'kind': 'constant', 'value': 13332.2387415}
-    >>> load_from_spec({"kind": "cosine-pulse", "amplitude": 1.3333e4, "duration": 0.003}, "loads.inlet").kind
+    {'model': 'constant', 'value': 13332.2387415}
+    >>> load_from_spec({"model": "cosine-pulse", "amplitude": 1.3333e4, "duration": 0.003}, "loads.inlet").model
     'cosine-pulse'
-    >>> load_from_spec({"kind": "cosine-puls", "amplitude": 1.0}, "loads.inlet")
+    >>> load_from_spec({"model": "cosine-puls", "amplitude": 1.0}, "loads.inlet")
     Traceback (most recent call last):
     ...
-    multilayer.plugin.problems.CaseError: loads.inlet.kind = 'cosine-puls': no such pressure load kind; did you mean 'cosine-pulse'?
-    >>> load_from_spec({"kind": "sine", "amplitude": "2"}, "loads.inlet.flow", quantity="flow rate", unit="cm²/s")
+    multilayer.plugin.problems.CaseError: loads.inlet.model = 'cosine-puls': no such pressure load; did you mean 'cosine-pulse'?
+    >>> load_from_spec({"kind": "table", "file": "aortic.csv"}, "loads.inlet")
+    Traceback (most recent call last):
+    ...
+    multilayer.plugin.problems.CaseError: loads.inlet.kind = 'table': plugins are chosen by 'model', not 'kind'; write model = "table"
+    >>> load_from_spec({"model": "sine", "amplitude": "2"}, "loads.inlet.flow", quantity="flow rate", unit="cm²/s")
     Traceback (most recent call last):
     ...
     multilayer.plugin.problems.CaseError: loads.inlet.flow.amplitude = '2': expected a number (cm²/s)
@@ -460,22 +466,24 @@ def load_from_spec(
             raise CaseError([Problem(path, spec, str(exc))]) from None
         return FormulaPressure(_formula(spec, path, constants)) if value is None else ConstantPressure(value)
     if not isinstance(spec, Mapping):
-        raise CaseError([Problem(path, spec, "expected a number, a formula in t or a table {kind = ...}")])
-    kind = spec.get("kind", MISSING)
-    if not isinstance(kind, str) or kind not in KINDS:
-        expected = f"no such {quantity} load kind" if kind is not MISSING else "missing; expected a load kind"
-        hint = did_you_mean(kind, KINDS) if isinstance(kind, str) else ""
-        raise CaseError([Problem(f"{path}.kind", kind, expected, hint or "kinds: " + ", ".join(KINDS))])
-    params, problems = check_params(spec, in_unit(KINDS[kind], unit), path, extra=("kind",))
+        raise CaseError([Problem(path, spec, "expected a number, a formula in t or a table {model = ...}")])
+    if old := old_model_problems(spec, path):
+        raise CaseError(old)
+    name = spec.get(MODEL, MISSING)
+    if not isinstance(name, str) or name not in KINDS:
+        expected = f"no such {quantity} load" if name is not MISSING else "missing; expected the name of a load"
+        hint = did_you_mean(name, KINDS) if isinstance(name, str) else ""
+        raise CaseError([Problem(f"{path}.{MODEL}", name, expected, hint or "available: " + ", ".join(KINDS))])
+    params, problems = check_params(spec, in_unit(KINDS[name], unit), path, extra=(MODEL,))
     if problems:
         raise CaseError(problems)
-    if kind == "constant":
+    if name == "constant":
         return ConstantPressure(params["value"])
-    if kind == "cosine-pulse":
+    if name == "cosine-pulse":
         return CosinePulse(**params)
-    if kind == "sine":
+    if name == "sine":
         return SinePressure(**params)
-    if kind == "formula":
+    if name == "formula":
         return FormulaPressure(_formula(params["expr"], f"{path}.expr", constants))
     return _table(params, path, Path(base_dir))
 

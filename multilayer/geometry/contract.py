@@ -35,7 +35,7 @@ class Geometry(ABC):
     """What the meridian plane (z, r) stands for: the measure of every integral of a scene.
 
     Subclass it, give :meth:`weight`, and register it as a geometry plugin
-    (``multilayer_geometries``); a case chooses it with ``[geometry] kind``.
+    (``multilayer_geometries``); a case chooses it with ``[geometry] model``.
 
     Examples
     --------
@@ -47,7 +47,7 @@ class Geometry(ABC):
     (3.0, 0)
     """
 
-    #: the kind's name, as ``[geometry] kind`` gives it
+    #: the geometry's name, as ``[geometry] model`` gives it
     name: ClassVar[str] = ""
     #: k in weight(r) = c rᵏ: 0 for a planar measure, 1 for an axisymmetric one
     radial_power: ClassVar[int] = 0

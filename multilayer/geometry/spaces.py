@@ -103,8 +103,10 @@ def make_line_space(length: float, nz: int, order: int, radius: float, geometry:
     Every field that shares the line (thin layer, fluid u_r trace, thick d_r)
     maps its own DOFs onto this numbering with :func:`line_prolongation`.
 
-    >>> from multilayer_plugins.planar import Planar
-    >>> s = make_line_space(6.0, 3, 2, 0.5, Planar())
+    >>> class Flat(Geometry):  # a planar measure, dV = dz dr
+    ...     def weight(self, r):
+    ...         return np.ones_like(np.asarray(r, dtype=float))
+    >>> s = make_line_space(6.0, 3, 2, 0.5, Flat())
     >>> int(s.ndofs), s.end_dofs.tolist()
     (7, [0, 3])
     """

@@ -40,7 +40,7 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from multilayer.plugin.records import Param
+from multilayer.plugin.records import MODEL, Param
 from multilayer.plugin.registry import Registry
 
 Quadratic = Callable[[np.ndarray], float]
@@ -110,8 +110,10 @@ class Stage:
     x^{n−1}, ...  Its ``ratio`` is its sub-step over the distance between its two newest old levels (that is
     what its extrapolations see).  A single-stage scheme has one stage, itself, with ``fraction`` = 1.
 
-    >>> [(s.scheme.name, s.fraction) for s in named("bdf2").stages]
-    [('bdf2', 1.0)]
+    >>> class Euler(TimeScheme):  # a stand-in single-stage scheme (the built-in ones: multilayer_plugins/schemes)
+    ...     name, alpha, beta = "euler", (1.0, -1.0), (1.0, 0.0)
+    >>> [(s.scheme.name, s.fraction) for s in Euler().stages]
+    [('euler', 1.0)]
     """
 
     scheme: TimeScheme
@@ -164,10 +166,13 @@ class TimeScheme(LinearMultistep):
     def beta(self) -> tuple[float, ...]:
         """A single-stage scheme's β (it defines its own); a multi-stage scheme has none, its stages do:
 
-        >>> named("tr-bdf2").beta
+        >>> class Split(TimeScheme):  # a stand-in scheme of two stages
+        ...     name = "split"
+        ...     stages = property(lambda self: (Stage(self, 0.5), Stage(self, 1.0)))
+        >>> Split().beta
         Traceback (most recent call last):
         ...
-        AttributeError: tr-bdf2 takes 2 stages a step: step each stage, a single-stage scheme (TimeScheme.substeps)
+        AttributeError: split takes 2 stages a step: step each stage, a single-stage scheme (TimeScheme.substeps)
         """
         raise AttributeError(f"{self.name} takes {len(self.stages)} stages a step: step each stage, a single-stage "
                              f"scheme (TimeScheme.substeps)")
@@ -188,8 +193,15 @@ class TimeScheme(LinearMultistep):
         by default), in order: the last ends at t1, a stage's Δt is its share of the step's, Δt itself for a
         single stage (so that a matrix held per Δt is the same at every step).
 
-        >>> named("crank-nicolson").substeps(0.0, 0.1)
-        [(CrankNicolson(ratio=1.0, previous=1.0), 0.0, 0.1, 0.1)]
+        >>> class Euler(TimeScheme):  # stand-ins: a single-stage scheme, and two of its stages a step
+        ...     name, alpha, beta = "euler", (1.0, -1.0), (1.0, 0.0)
+        >>> class Split(TimeScheme):
+        ...     name = "split"
+        ...     stages = property(lambda self: (Stage(Euler(), 0.5), Stage(Euler(), 1.0)))
+        >>> Euler().substeps(0.0, 0.1)
+        [(Euler(ratio=1.0, previous=1.0), 0.0, 0.1, 0.1)]
+        >>> [(start, end, dt) for _, start, end, dt in Split().substeps(0.0, 0.1)]
+        [(0.0, 0.05, 0.05), (0.05, 0.1, 0.05)]
         """
         dt = t1 - t0 if dt is None else dt
         out, start, done = [], t0, 0.0
@@ -288,7 +300,7 @@ def scheme_param(default: str = "backward-euler") -> Param:
     """The ``scheme`` parameter of a coupler: the name of a registered time scheme (or a table with its parameters)."""
     return Param("scheme", type=str, default=default, plugin="scheme",
                  doc="time discretization: a registered time scheme ('multilayer plugins' lists them), by name, "
-                     "or as a table {kind = name, ...its parameters}")
+                     "or as a table {model = name, ...its parameters}")
 
 
 @functools.cache
@@ -300,18 +312,36 @@ def _installed() -> Registry:
 def named(name: str, registry: Registry | None = None, **params: Any) -> TimeScheme:
     """The registered time scheme ``name`` built with ``params`` (the installed plugins by default).
 
-    >>> named("crank-nicolson").order, named("bdf2").levels
-    (2, 3)
+    >>> from multilayer.plugin.hookspecs import hookimpl
+    >>> from multilayer.plugin.records import SchemePlugin
+    >>> class Euler(TimeScheme):  # a stand-in scheme, and a plugin that registers it
+    ...     name, alpha, beta = "euler", (1.0, -1.0), (1.0, 0.0)
+    >>> class Schemes:
+    ...     @hookimpl
+    ...     def multilayer_schemes(self):
+    ...         return [SchemePlugin(name="euler", factory=Euler, doc="Backward Euler.")]
+    >>> registry = Registry.load([Schemes()], entry_points=False)
+    >>> named("euler", registry).levels, named("euler", registry, ratio=2.0).ratio
+    (2, 2.0)
     """
-    return (registry or _installed()).build("scheme", {"kind": name, **params})
+    return (registry or _installed()).build("scheme", {MODEL: name, **params})
 
 
 def schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
     """Every registered time scheme that takes its parameters' defaults, built, by name (the installed plugins
     by default).
 
-    >>> sorted(schemes())
-    ['backward-euler', 'bdf2', 'crank-nicolson', 'tr-bdf2']
+    >>> from multilayer.plugin.hookspecs import hookimpl
+    >>> from multilayer.plugin.records import Param, SchemePlugin
+    >>> class Euler(TimeScheme):  # a stand-in scheme
+    ...     name, alpha, beta = "euler", (1.0, -1.0), (1.0, 0.0)
+    >>> class Schemes:  # a plugin of two schemes, one with a parameter to give
+    ...     @hookimpl
+    ...     def multilayer_schemes(self):
+    ...         return [SchemePlugin(name="euler", factory=Euler, doc="Backward Euler."),
+    ...                 SchemePlugin(name="theta", factory=Euler, params=(Param("theta", unit="1"),), doc="θ.")]
+    >>> sorted(schemes(Registry.load([Schemes()], entry_points=False)))
+    ['euler']
     """
     registry = registry or _installed()
     out = {}
@@ -327,8 +357,20 @@ def stage_schemes(registry: Registry | None = None) -> dict[str, TimeScheme]:
     (:func:`schemes`), by name: the scheme's own for a single-stage one, ``<name>[k]`` for a multi-stage one's
     stage k — what a test of one step's identity runs over.
 
-    >>> sorted(stage_schemes())
-    ['backward-euler', 'bdf2', 'crank-nicolson', 'tr-bdf2[0]', 'tr-bdf2[1]']
+    >>> from multilayer.plugin.hookspecs import hookimpl
+    >>> from multilayer.plugin.records import SchemePlugin
+    >>> class Euler(TimeScheme):  # stand-ins: a single-stage scheme, and two of its stages a step
+    ...     name, alpha, beta = "euler", (1.0, -1.0), (1.0, 0.0)
+    >>> class Split(TimeScheme):
+    ...     name = "split"
+    ...     stages = property(lambda self: (Stage(Euler(), 0.5), Stage(Euler(), 1.0)))
+    >>> class Schemes:
+    ...     @hookimpl
+    ...     def multilayer_schemes(self):
+    ...         return [SchemePlugin(name="euler", factory=Euler, doc="Backward Euler."),
+    ...                 SchemePlugin(name="split", factory=Split, doc="Two stages.")]
+    >>> sorted(stage_schemes(Registry.load([Schemes()], entry_points=False)))
+    ['euler', 'split[0]', 'split[1]']
     """
     out = {}
     for name, scheme in schemes(registry).items():

@@ -108,7 +108,7 @@ def multilayer_geometries() -> Iterable[GeometryPlugin]:
     """Geometries this plugin provides: what the meridian plane (z, r) of a scene stands for.
 
     The factory receives the validated parameters (the keys of ``[geometry]``
-    besides ``kind``, ``length`` and ``radius``) as keyword arguments and
+    besides ``model``, ``length`` and ``radius``) as keyword arguments and
     returns a :class:`multilayer.geometry.contract.Geometry`, which owns the
     measure of every integral of the scene.
 
@@ -130,7 +130,7 @@ def multilayer_boundaries() -> Iterable[BoundaryPlugin]:
     """Boundary conditions for the open ends of the fluid (inlet, outlet) this plugin provides.
 
     The factory receives the validated parameters (the keys of the end's
-    table besides ``kind``) as keyword arguments (and ``context=`` when the
+    table besides ``model``) as keyword arguments (and ``context=`` when the
     record asks for it) and returns a
     :class:`multilayer.boundary.contract.BoundaryCondition`.
 
@@ -152,7 +152,7 @@ def multilayer_schemes() -> Iterable[SchemePlugin]:
     """Time schemes this plugin provides: what a coupler's ``scheme`` parameter names.
 
     The factory receives the validated parameters (the keys of a
-    ``scheme = {kind = "<name>", ...}`` table besides ``kind``) as keyword
+    ``scheme = {model = "<name>", ...}`` table besides ``model``) as keyword
     arguments and returns a :class:`multilayer.numerics.timescheme.TimeScheme`:
     its stages' weights, its energy identity, its order, its error estimate.
 

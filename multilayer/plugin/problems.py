@@ -14,7 +14,7 @@ from typing import Any
 import attrs
 
 from multilayer.plugin import units
-from multilayer.plugin.records import Param
+from multilayer.plugin.records import MODEL, OLD_MODEL, Param, old_model_text
 from multilayer.plugin.registry import nearest
 
 #: The value of a key that is not there.
@@ -74,6 +74,19 @@ class CaseError(Exception):
         super().__init__("\n".join(str(p) for p in self.problems))
 
 
+def old_model_problems(table: Any, path: str) -> list[Problem]:
+    """The old key ``kind`` in ``table``, a table at ``path`` that names a plugin: one problem at ``path.kind``.
+
+    >>> print(*old_model_problems({"kind": "flow-rate", "flow": 6.0}, "loads.inlet"))
+    loads.inlet.kind = 'flow-rate': plugins are chosen by 'model', not 'kind'; write model = "flow-rate"
+    >>> old_model_problems({"model": "flow-rate"}, "loads.inlet"), old_model_problems(6.0, "loads.inlet")
+    ([], [])
+    """
+    if not isinstance(table, Mapping) or OLD_MODEL not in table:
+        return []
+    return [Problem(f"{path}.{OLD_MODEL}", table[OLD_MODEL], *old_model_text(table))]
+
+
 def did_you_mean(name: str, candidates: Iterable[str]) -> str:
     hint = nearest(name, candidates)
     return f"did you mean {hint!r}?" if hint else ""
@@ -92,7 +105,7 @@ def describe(param: Param) -> str:
     if param.choices is not None:
         return "one of " + ", ".join(show(c) for c in param.choices)
     if param.plugin is not None:
-        return f"the name of a {param.plugin} plugin, or a table {{kind = name, ...}}"
+        return f"the name of a {param.plugin} plugin, or a table {{{MODEL} = name, ...}}"
     noun = {float: "a number", int: "an integer", str: "a string", bool: "true or false"}.get(
         param.type, getattr(param.type, "noun", param.type.__name__)  # a type may say what it is
     )
@@ -103,9 +116,9 @@ def describe(param: Param) -> str:
 
 def check_value(param: Param, value: Any) -> tuple[Any, bool]:
     """``(converted value, ok)``: ints become floats for a float parameter; bools are no numbers.  A parameter
-    that names a plugin takes a name or a table with a ``kind`` (the validator looks the plugin up)."""
+    that names a plugin takes a name or a table with a ``model`` (the validator looks the plugin up)."""
     if param.plugin is not None:
-        return value, isinstance(value, str) or (isinstance(value, Mapping) and isinstance(value.get("kind"), str))
+        return value, isinstance(value, str) or (isinstance(value, Mapping) and isinstance(value.get(MODEL), str))
     if param.type is float:
         ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
         value = float(value) if ok else value

@@ -2,13 +2,35 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import json
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import attrs
 
 #: Marker for a parameter that has no default and must be given.
 REQUIRED: Any = attrs.make_class("Required", [], repr_ns=None)()
+
+#: the key of a case-file table that names the plugin (or the load) the table builds: ``model = "windkessel"``
+MODEL = "model"
+#: the key that named the geometry, the ends, the loads and the schemes before ``model`` named every plugin;
+#: refused where a table names its plugin, with the line to write (:func:`old_model_text`)
+OLD_MODEL = "kind"
+
+
+def old_model_text(table: Mapping[str, Any]) -> tuple[str, str]:
+    """(what is wrong, what to write) about the old key ``kind`` in ``table``, a table that names a plugin.
+
+    >>> old_model_text({"kind": "axisymmetric", "length": 6.0})
+    ("plugins are chosen by 'model', not 'kind'", 'write model = "axisymmetric"')
+    >>> old_model_text({"kind": "table", "model": "table"})
+    ("plugins are chosen by 'model', not 'kind', and model = 'table' is given too", 'remove kind')
+    """
+    wrong = f"plugins are chosen by {MODEL!r}, not {OLD_MODEL!r}"
+    if MODEL in table:
+        return f"{wrong}, and {MODEL} = {table[MODEL]!r} is given too", f"remove {OLD_MODEL}"
+    value = table[OLD_MODEL]
+    return wrong, f"write {MODEL} = " + (json.dumps(value, ensure_ascii=False) if isinstance(value, str) else repr(value))
 
 
 @attrs.frozen
@@ -34,7 +56,7 @@ class Param:
         Allowed values of a string parameter.
     plugin : str, optional
         The kind of plugin the value names (``"scheme"``): the name of a registered plugin of that kind,
-        or a table ``{kind = name, ...its parameters}``; the validator checks it against the registry
+        or a table ``{model = name, ...its parameters}``; the validator checks it against the registry
         and the factory receives that plugin built (:meth:`multilayer.plugin.registry.Registry.arguments`).
     doc : str
         One line: what the parameter is.
@@ -118,7 +140,7 @@ class CouplerPlugin(PluginRecord):
 @attrs.frozen
 class GeometryPlugin(PluginRecord):
     """A geometry: what the meridian plane (z, r) stands for, its measure (a
-    :class:`multilayer.geometry.contract.Geometry`). ``[geometry] kind`` names it; its parameters sit in
+    :class:`multilayer.geometry.contract.Geometry`). ``[geometry] model`` names it; its parameters sit in
     ``[geometry]`` beside ``length`` and ``radius``."""
 
     kind: ClassVar[str] = "geometry"
@@ -128,7 +150,7 @@ class GeometryPlugin(PluginRecord):
 class BoundaryPlugin(PluginRecord):
     """A condition on an open end of the fluid (a :class:`multilayer.boundary.contract.BoundaryCondition`).
 
-    A case names it as ``[loads] inlet = {kind = "<name>", ...}`` (or ``outlet``).
+    A case names it as ``[loads] inlet = {model = "<name>", ...}`` (or ``outlet``).
     With ``context`` the factory also receives ``context=``, a
     :class:`multilayer.boundary.contract.BuildContext` (the key path, the case's
     folder for relative file names, the constants a formula may use).
@@ -141,7 +163,7 @@ class BoundaryPlugin(PluginRecord):
 @attrs.frozen
 class SchemePlugin(PluginRecord):
     """A time scheme (a :class:`multilayer.numerics.timescheme.TimeScheme`): a coupler's ``scheme`` parameter
-    names it (``[coupler] scheme = "<name>"``, or ``{kind = "<name>", ...}`` with its parameters)."""
+    names it (``[coupler] scheme = "<name>"``, or ``{model = "<name>", ...}`` with its parameters)."""
 
     kind: ClassVar[str] = "scheme"
 

@@ -28,7 +28,13 @@ import pluggy
 
 from multilayer.plugin import hookspecs
 from multilayer.plugin.interrupts import UserInterrupt
-from multilayer.plugin.records import PluginRecord, Registered
+from multilayer.plugin.records import (
+    MODEL,
+    OLD_MODEL,
+    PluginRecord,
+    Registered,
+    old_model_text,
+)
 
 HOOKS = {
     "layer": "multilayer_layers",
@@ -149,9 +155,15 @@ class Registry:
 
     Examples
     --------
-    >>> reg = Registry.load()
-    >>> reg.get("layer", "wave-membrane").package
-    'multilayer'
+    >>> from multilayer.plugin.hookspecs import hookimpl
+    >>> from multilayer.plugin.records import GeometryPlugin
+    >>> class Geometries:  # a plugin registered by hand (Registry.load() adds the installed ones, entry points)
+    ...     @hookimpl
+    ...     def multilayer_geometries(self):
+    ...         return [GeometryPlugin(name="flat", factory=dict, doc="A stand-in.")]
+    >>> reg = Registry.load([Geometries()], entry_points=False)
+    >>> reg.names("geometry"), reg.get("geometry", "flat").record.doc, reg.names("layer")
+    (['flat'], 'A stand-in.', [])
     """
 
     def __init__(self, pm: pluggy.PluginManager, dists: dict[int, tuple[str, str]] | None = None,
@@ -243,17 +255,32 @@ class Registry:
         return found
 
     def build(self, kind: str, spec: str | Mapping[str, Any]) -> Any:
-        """The plugin of ``kind`` that ``spec`` names, built: a name, or a table ``{kind = name, ...its
+        """The plugin of ``kind`` that ``spec`` names, built: a name, or a table ``{model = name, ...its
         parameters}`` (the parameters it leaves out take their defaults).  Checks nothing the case
-        validator checks; a name that is not registered is a KeyError (:meth:`get`).
+        validator checks; a name that is not registered is a KeyError (:meth:`get`), a table with the old
+        key ``kind`` a ValueError.
 
-        >>> Registry.load().build("scheme", "crank-nicolson").order
-        2
+        >>> from multilayer.plugin.hookspecs import hookimpl
+        >>> from multilayer.plugin.records import Param, SchemePlugin
+        >>> class Schemes:  # a stand-in plugin, whose "scheme" is the dict of its parameters
+        ...     @hookimpl
+        ...     def multilayer_schemes(self):
+        ...         return [SchemePlugin(name="theta", factory=dict, params=(Param("theta", unit="1", default=1.0),),
+        ...                              doc="The θ-method.")]
+        >>> reg = Registry.load([Schemes()], entry_points=False)
+        >>> reg.build("scheme", "theta"), reg.build("scheme", {"model": "theta", "theta": 0.5})
+        ({'theta': 1.0}, {'theta': 0.5})
+        >>> reg.build("scheme", {"kind": "theta"})
+        Traceback (most recent call last):
+        ...
+        ValueError: kind = 'theta': plugins are chosen by 'model', not 'kind'; write model = "theta"
         """
         if isinstance(spec, str):
             name, given = spec, {}
         else:
-            name, given = spec["kind"], {k: v for k, v in spec.items() if k != "kind"}
+            if OLD_MODEL in spec:
+                raise ValueError(f"{OLD_MODEL} = {spec[OLD_MODEL]!r}: " + "; ".join(old_model_text(spec)))
+            name, given = spec[MODEL], {k: v for k, v in spec.items() if k != MODEL}
         record = self.get(kind, name).record
         params = {p.name: p.default for p in record.params if not p.required}
         return record.factory(**{**params, **given})
@@ -289,16 +316,16 @@ def plugin_versions(case, registry: Registry) -> dict[str, dict[str, str]]:
              *(("layer", s.path, s.model) for s in case.layers)]
     if case.fluid is not None:
         specs.append(("fluid", case.fluid.path, case.fluid.model))
-    specs.append(("geometry", "geometry", case.geometry.kind))
+    specs.append(("geometry", "geometry", case.geometry.model))
     loads = case.resolved.get("loads") or {}
-    specs += [("boundary", f"loads.{end}", loads[end]["kind"]) for end in ("inlet", "outlet")
-              if isinstance(loads.get(end), dict) and "kind" in loads[end]]
+    specs += [("boundary", f"loads.{end}", loads[end][MODEL]) for end in ("inlet", "outlet")
+              if isinstance(loads.get(end), dict) and MODEL in loads[end]]
     record = registry.find("coupler", case.coupler.model)
     for param in record.record.params if record is not None else ():  # the plugins its parameters name
         value = case.coupler.params.get(param.name)
         if param.plugin is not None and value is not None:
             specs.append((param.plugin, f"{case.coupler.path}.{param.name}",
-                          value if isinstance(value, str) else value["kind"]))
+                          value if isinstance(value, str) else value[MODEL]))
     out = {}
     for kind, path, name in specs:
         reg = registry.find(kind, name)

@@ -48,9 +48,13 @@ FLOOR = 1e-13
 class LumenVolume:
     """The lumen's volume V(η, d_z) and its change between two states, on the fluid's interface line.
 
-    >>> from multilayer_plugins.axisymmetric import Axisymmetric
+    >>> from multilayer.geometry.contract import Geometry
     >>> from multilayer.geometry.spaces import make_line_space
-    >>> line = make_line_space(6.0, 10, 2, 0.3, Axisymmetric())
+    >>> class Tube(Geometry):  # the measure of a tube, dV = 2πr dz dr
+    ...     radial_power = 1
+    ...     def weight(self, r):
+    ...         return 2.0 * np.pi * np.asarray(r, dtype=float)
+    >>> line = make_line_space(6.0, 10, 2, 0.3, Tube())
     >>> meter = LumenVolume(line)
     >>> eta = 0.01 * np.sin(np.pi * line.z / 6.0)   # P2 interpolant of a bulge
     >>> exact = np.pi * (0.3**2 * 6.0 + 2 * 0.3 * 0.01 * 12 / np.pi + 0.01**2 * 3.0)

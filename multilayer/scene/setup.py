@@ -35,10 +35,10 @@ def build_model(registry: Registry, kind: str, spec) -> Any:
 
 
 def build_geometry(registry: Registry, spec) -> Geometry:
-    """The geometry of the case's ``[geometry]`` (its kind, built with its parameters)."""
-    geometry = registry.get("geometry", spec.kind).record.factory(**dict(spec.params))
+    """The geometry of the case's ``[geometry]`` (its model, built with its parameters)."""
+    geometry = registry.get("geometry", spec.model).record.factory(**dict(spec.params))
     if not isinstance(geometry, Geometry):
-        raise ValueError(f"geometry kind {spec.kind!r}: the plugin's factory returned {type(geometry).__name__}, "
+        raise ValueError(f"geometry model {spec.model!r}: the plugin's factory returned {type(geometry).__name__}, "
                          f"not a Geometry")
     return geometry
 

@@ -26,12 +26,25 @@ def probe(layers: Sequence[Layer], names: Sequence[str], geometry: Geometry, len
           order: int) -> dict[int, list[str]]:
     """What is wrong with what each layer returns on a small wall in ``geometry``, by position in the stack.
 
-    >>> from multilayer_plugins.linear_elastic import LinearElasticBand
-    >>> from multilayer_plugins.planar import Planar
-    >>> from multilayer_plugins.thin_shell import KoiterFamilyLayer
-    >>> layers = [KoiterFamilyLayer(1.0, 0.1, C1=1.0), LinearElasticBand(1.0, 0.1, 1.0, 1.0)]
-    >>> probe(layers, ["a", "b"], Planar(), 6.0, 0.5, 2)
+    >>> import numpy as np
+    >>> from skfem import BilinearForm
+    >>> from multilayer.wall.layer import LayerMatrices, ThinLayer
+    >>> class Flat(Geometry):  # a planar measure, dV = dz dr
+    ...     def weight(self, r):
+    ...         return np.ones_like(np.asarray(r, dtype=float))
+    >>> mass = BilinearForm(lambda eta, psi, w: eta * psi)
+    >>> class Spring(ThinLayer):  # a wall on springs
+    ...     def forms(self, space):
+    ...         M = mass.assemble(space.basis).tocsr()
+    ...         return LayerMatrices(M, 0.0 * M, 1e5 * M)
+    >>> class Undamped(ThinLayer):  # its damping a number, not a matrix
+    ...     def forms(self, space):
+    ...         M = mass.assemble(space.basis).tocsr()
+    ...         return LayerMatrices(M, 0.0, 1e5 * M)
+    >>> probe([Spring(), Spring()], ["a", "b"], Flat(), 6.0, 0.5, 2)
     {}
+    >>> probe([Spring(), Undamped()], ["a", "b"], Flat(), 6.0, 0.5, 2)
+    {1: ['damping must be a scipy sparse matrix, got float']}
     """
     space = WallSpace.build(layers, geometry, length, radius, PROBE_NZ, order, [1] * len(layers), names)
     found = {}
