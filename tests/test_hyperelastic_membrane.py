@@ -355,3 +355,38 @@ def test_the_splitting_with_the_inertia_runs_the_membrane_under_a_pressure_inlet
     assert result.status == "ok", result.reason
     run = read_run("run", tmp_path / "run")
     assert run.summary["energy"]["max_relative_residual"] <= 1e-9
+
+
+# ---- the static start's bound ----------------------------------------------------------------------------------
+
+#: the membrane alone lining a tube at rest under a uniform pressure (its largest, hc/R, is 1.11e4 dyn/cm²)
+TUBE = {"geometry": {"kind": "axisymmetric", "length": 6.0, "radius": R}, "mesh": {"nz": 12, "nr": 3, "order": 2},
+        "time": {"end": 2e-3, "dt": 1e-3}, "fluid": {"model": "navier-stokes", "density": 1.06, "viscosity": 0.035},
+        "layers": [INTIMA], "coupler": {"model": "monolithic"},
+        "output": {"probes": [{"name": "eta_mid", "quantity": "eta", "z": 3.0}]}}
+
+
+def test_a_membrane_alone_starts_beyond_the_linear_walls_small_strain(tmp_path):
+    """8000 dyn/cm² inflates it by 0.374 R (λθ⁴ = 1/(1 − pR/(hc))): beyond the R/4 that validation asks of a
+    linear wall, within the run's max_displacement; the run started there stays there."""
+    P = 8000.0
+    data = {**TUBE, "initial": {"pressure": P}, "loads": {"inlet": P, "outlet": P}}
+    result = run_case(validate_data(data, tmp_path, REGISTRY), tmp_path / "run", REGISTRY)
+    assert result.status == "ok", result.reason
+    eta = read_run("run", tmp_path / "run").series["eta_mid"]
+    exact = R * ((1 - P * R / (H * NEO.c)) ** -0.25 - 1)
+    assert 0.25 * R < exact < 0.5 * R
+    assert np.max(np.abs(eta - eta[0])) <= 1e-9 * exact  # measured 7.4e-14
+    # measured 6.6e-7: the pinned ends' boundary layer (~0.13 cm wide) on cells of 0.5 cm
+    assert abs(eta[0] / exact - 1) <= 1e-5
+
+
+def test_validation_refuses_a_pressure_beyond_the_membranes_largest_and_says_why(tmp_path):
+    with pytest.raises(CaseError, match="the wall cannot hold it: under it, on the lumen at rest, the wall moves it "
+                                        "by .*a finite-strain wall holds no more than its largest pressure"):
+        validate_data({**TUBE, "initial": {"pressure": 2.0e4}}, tmp_path, REGISTRY)
+    # behind linear bands the small-strain bound stays
+    with pytest.raises(CaseError, match="expected \\|η\\| ≤ 0.25 R = 0.075 cm \\(the linear wall's small strain\\)"):
+        data = carotid(INTIMA, {"model": "monolithic"})
+        data["initial"]["pressure"] = 2.0e5
+        validate_data(data, CAROTID.parent, REGISTRY)
