@@ -95,7 +95,8 @@ def test_an_unknown_check_or_layer():
 # -- the command --------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["wave-membrane", "koiter-shell", "linear-elastic"])
+@pytest.mark.parametrize("name", ["wave-membrane", "koiter-shell", "neo-hookean-membrane", "hgo-membrane",
+                                  "linear-elastic"])
 def test_check_plugin_passes_the_built_in_layers(name, capsys):
     assert main(["check-plugin", name]) == 0
     out = capsys.readouterr().out

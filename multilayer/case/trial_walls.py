@@ -12,6 +12,7 @@ linear wall's range, once the run has started.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -31,7 +32,8 @@ from multilayer.wall.stack import LUMEN, Stack, WallSpace, fluid_pinned_lines
 #: admits.  The layers are linear, small-strain models: in a tube η/R is the hoop strain, whose quadratic term
 #: (η/R)²/2 they leave out (an eighth of it at R/4), while the pressure on the moved lumen, which the static
 #: start keeps, makes a fifth of the deflection there (η = η₁(1 + η/R), η₁ the linear one); beyond, the start
-#: is outside the model (and far beyond, a unit slipped: moduli in kPa or Pa, not dyn/cm²).
+#: is outside the model (and far beyond, a unit slipped: moduli in kPa or Pa, not dyn/cm²).  A wall whose layers
+#: are all nonlinear (finite-strain: a hyperelastic membrane) is not bound by it.
 SMALL_DEFLECTION = 0.25
 #: what a deflection far beyond the bound most often means
 UNITS = ("check that the layers' moduli and initial.pressure are in dyn/cm² (1 kPa = 1e4 dyn/cm², "
@@ -82,18 +84,24 @@ def deflection_problems(pressure: float, external: float, stack: Stack, limits: 
     the run's own solve) weighed against the channel.
 
     Refused, at ``initial.pressure``: a lumen moved by more than :data:`SMALL_DEFLECTION` × R (or
-    ``[solver] max_displacement`` × R when that is less: the run would stop at once), a pressure on the moved
+    ``[solver] max_displacement`` × R when that is less: the run would stop at once; a wall whose layers are all
+    nonlinear, finite-strain models, has no small-strain bound: max_displacement alone), a pressure on the moved
     lumen that outgrows the wall (no equilibrium settles: the linear deflection is reported), and a wall whose
     stiffness is singular.  ``external`` is the outer pressure at t = 0; ``limits`` may be a placeholder
     (:mod:`multilayer.case.partial`): then the small-strain bound alone.
     """
     R = stack.space.radius
     bound, why, hint = SMALL_DEFLECTION, "the linear wall's small strain", "a smaller initial.pressure or a stiffer wall"
+    # a wall of finite-strain layers only (every layer nonlinear: a hyperelastic membrane) has no small-strain bound;
+    # the run's own limit stays
+    finite_strain = not any(m.linear for m in stack.matrices)
+    if finite_strain:
+        bound, why = math.inf, ""
     if isinstance(limits, Limits) and limits.max_displacement < bound:
         bound, why = limits.max_displacement, "[solver] max_displacement: the run would stop at once"
         hint = "a smaller initial.pressure, a stiffer wall or a larger solver.max_displacement"
     loads = "under it" + (f" and loads.external = {external:g} at t = 0" if external else "")
-    expected = f"expected |η| ≤ {bound:g} R = {bound * R:.6g} cm ({why})"
+    expected = f"; expected |η| ≤ {bound:g} R = {bound * R:.6g} cm ({why})" if math.isfinite(bound) else ""
     try:
         d, settles = static_deflection(stack, pressure, external), True
     except Unsettled as exc:
@@ -112,11 +120,15 @@ def deflection_problems(pressure: float, external: float, stack: Stack, limits: 
     if not settles or abs(eta[i]) >= R:  # far beyond the bound: more likely a unit than a pressure
         hint = f"{hint}; {UNITS}"
     if not settles:
-        return [Problem("initial.pressure", pressure, f"the wall cannot hold it: {loads} the linear wall alone moves the "
-                        f"lumen by {moved}, and the pressure on the moved lumen outgrows its stiffness (no static "
-                        f"equilibrium settles); {expected}", hint)]
+        alone = (f"{loads}, on the lumen at rest, the wall moves it" if finite_strain
+                 else f"{loads} the linear wall alone moves the lumen")
+        beyond = ("; a finite-strain wall holds no more than its largest pressure, hc/(Rλz0) for a thin neo-Hookean "
+                  "tube, docs/theory.md §1" if finite_strain else "")
+        return [Problem("initial.pressure", pressure, f"the wall cannot hold it: {alone} by {moved}, and the "
+                        f"pressure on the moved lumen outgrows its stiffness (no static equilibrium settles{beyond})"
+                        f"{expected}", hint)]
     if abs(eta[i]) <= bound * R:
         return []
     closes = " (R + η ≤ 0: the lumen closes)" if R + eta[i] <= 0.0 else ""
     return [Problem("initial.pressure", pressure, f"the wall's static equilibrium {loads} moves the lumen by "
-                    f"{moved}{closes}; {expected}", hint)]
+                    f"{moved}{closes}{expected}", hint)]
