@@ -178,7 +178,7 @@ def test_compares_long_wave_speed_is_moens_kortewegs_with_the_rest_stiffness(kin
     layer = {"model": f"{name}-membrane", "density": RHO, "thickness": H, "c": LAWS[name].c}
     if LAWS[name].k1:
         layer.update(k1=HGO.k1, k2=HGO.k2, angle=HGO.angle)
-    case = {"geometry": {"kind": kind, "length": 6.0, "radius": R}, "mesh": {"nz": 30, "nr": 4, "order": 2},
+    case = {"geometry": {"model": kind, "length": 6.0, "radius": R}, "mesh": {"nz": 30, "nr": 4, "order": 2},
             "fluid": {"model": "navier-stokes", "density": 1.06, "viscosity": 0.035}, "layers": [layer]}
     speed = stack_long_wave_speed(case, REGISTRY).value
     exact = math.sqrt(R / (1 + k) * membrane(LAWS[name]).long_wave_stiffness(R) / 1.06)
@@ -269,7 +269,7 @@ def test_the_static_start_inflates_a_long_tube_to_the_closed_form():
 # ---- Newton in a wall step ---------------------------------------------------------------------------------------
 
 #: the membrane alone ringing from a large deflection (λθ from 0.75 to 1.25)
-RINGING = {"geometry": {"kind": "axisymmetric", "length": 6.0, "radius": R}, "mesh": {"nz": 12, "nr": 3, "order": 2},
+RINGING = {"geometry": {"model": "axisymmetric", "length": 6.0, "radius": R}, "mesh": {"nz": 12, "nr": 3, "order": 2},
            "time": {"end": 2e-4, "dt": 2e-4}, "fluid": "none",
            "layers": [{"model": "hgo-membrane", "density": RHO, "thickness": H, "c": HGO.c, "k1": HGO.k1,
                        "k2": HGO.k2, "angle": HGO.angle}],
@@ -348,7 +348,7 @@ def test_the_splitting_with_the_inertia_runs_the_membrane_under_a_pressure_inlet
     """The carotid with a pressure pulse in instead of the flow rate: the paper's scheme takes the nonlinear
     membrane (its structure step is a whole wall step, solved by Newton) and closes the ledger."""
     data = carotid(INTIMA, {"model": "kinematic-splitting", "robin": "inertia"})
-    data["loads"]["inlet"] = {"kind": "cosine-pulse", "amplitude": 1.3e4, "duration": 0.01}
+    data["loads"]["inlet"] = {"model": "cosine-pulse", "amplitude": 1.3e4, "duration": 0.01}
     data["initial"] = {}
     data["solver"] = {"volume_margin": 1e9}  # the paper's Robin term loses volume through a stiff wall (theory §7)
     result = run_case(validate_data(data, CAROTID.parent, REGISTRY), tmp_path / "run", REGISTRY)
@@ -360,7 +360,7 @@ def test_the_splitting_with_the_inertia_runs_the_membrane_under_a_pressure_inlet
 # ---- the static start's bound ----------------------------------------------------------------------------------
 
 #: the membrane alone lining a tube at rest under a uniform pressure (its largest, hc/R, is 1.11e4 dyn/cm²)
-TUBE = {"geometry": {"kind": "axisymmetric", "length": 6.0, "radius": R}, "mesh": {"nz": 12, "nr": 3, "order": 2},
+TUBE = {"geometry": {"model": "axisymmetric", "length": 6.0, "radius": R}, "mesh": {"nz": 12, "nr": 3, "order": 2},
         "time": {"end": 2e-3, "dt": 1e-3}, "fluid": {"model": "navier-stokes", "density": 1.06, "viscosity": 0.035},
         "layers": [INTIMA], "coupler": {"model": "monolithic"},
         "output": {"probes": [{"name": "eta_mid", "quantity": "eta", "z": 3.0}]}}
