@@ -49,10 +49,16 @@ class Unsettled(ValueError):
         self.linear = linear
 
 
-def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None) -> np.ndarray:
+def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None,
+                      start: np.ndarray | None = None, tolerance: float = TOLERANCE) -> np.ndarray:
     """The wall displacement d (wall numbering, essential DOFs zero) with f_int(d) = f under the lumen pressure
     ``pressure`` and the outer surface's ``external`` (dyn/cm²).  ``stats``: where a nonlinear wall's Newton
-    solves and factorizations are counted.
+    solves and factorizations are counted.  ``start``: where a nonlinear wall's iteration starts (default
+    d = 0), e.g. the equilibrium under the last of a sequence of growing pressures (load steps: a large
+    deformation that Newton's method does not reach from rest in one).  ``tolerance``: the relative residual a
+    nonlinear wall's Newton iteration ends at (a nearly incompressible band under a large deformation has a
+    round-off floor of about κ·10⁻¹⁶|d|/(h σ), κ its bulk modulus, σ its stress, h its cells' size, which may
+    lie above the default).
 
     Raises
     ------
@@ -68,9 +74,11 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     if linear:
         factors = splu(stack.stiffness.tocsc()[free][:, free]).solve
     outer = -external * space.line_load(space.outer_line)
-    settled = ROUND_OFF if linear else TOLERANCE
+    settled = ROUND_OFF if linear else tolerance
     stats = SolverStats() if stats is None else stats
     d, previous, first = np.zeros(space.ndofs), np.inf, None
+    if start is not None and not linear:
+        d = stack.zero_fixed(start)
     for _ in range(MAX_ITERATIONS):
         eta = space.restrictions[LUMEN] @ d
         f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
@@ -79,7 +87,7 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
             new[free] = newton(None, lambda x, r: factors(r), None, linear=True, first=f[free]).x
         else:
             new[free] = newton(lambda x: _out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
-                               d[free], stats=stats, what="the wall's static equilibrium").x
+                               d[free], stats=stats, tolerance=tolerance, what="the wall's static equilibrium").x
         change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
         d = new
         first = new if first is None else first
@@ -99,10 +107,12 @@ def _full(stack: Stack, x: np.ndarray) -> np.ndarray:
 
 
 def _out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms."""
-    internal = [m.force(_full(stack, x)) for m in stack.matrices]
+    """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms (a nonlinear layer's
+    :meth:`~multilayer.wall.layer.NonlinearForms.force_size`)."""
+    d = _full(stack, x)
+    internal = [m.force(d) for m in stack.matrices]
     r = f - sum(internal)
-    size = np.abs(f) + sum(np.abs(term) for term in internal)
+    size = np.abs(f) + sum(np.abs(term) if m.linear else m.force_size(d) for m, term in zip(stack.matrices, internal))
     return r[stack.free], size[stack.free]
 
 

@@ -101,6 +101,14 @@ class NonlinearForms(LayerMatrices):
         """Δt v·g(v)."""
         return dt * float(v @ self.damping_force(v))
 
+    def force_size(self, d: np.ndarray) -> np.ndarray:
+        """Entry by entry, the size of the terms the force f(d) adds up: the scale its round-off is relative to,
+        for the residual of a Newton solve (:mod:`multilayer.numerics.newton`).  |f(d)| by default; a layer whose
+        force at a DOF sums large contributions that cancel (the elements' forces in a prestressed band, at
+        equilibrium under no load) returns their magnitudes summed, so that the solve's tolerance is relative
+        to what round-off leaves."""
+        return np.abs(self.force(d))
+
     def scattered(self, P: sp.spmatrix) -> LayerMatrices:
         """These forms in another numbering: the matrices P A Pᵀ, the forces P f(Pᵀ d) (:class:`MovedForms`)."""
         P = sp.csr_matrix(P)
@@ -126,6 +134,9 @@ class MovedForms(NonlinearForms):
 
     def tangent(self, d: np.ndarray) -> sp.spmatrix:
         return (self.P @ sp.csr_matrix(self.own.tangent(self.R @ d)) @ self.R).tocsr()
+
+    def force_size(self, d: np.ndarray) -> np.ndarray:
+        return self.P @ self.own.force_size(self.R @ d)
 
     def damping_force(self, v: np.ndarray) -> np.ndarray:
         return self.P @ self.own.damping_force(self.R @ v)
