@@ -81,8 +81,12 @@ class HyperelasticForms(NonlinearForms):
         _, _, U2 = self.volumetric.derivatives(Jbar1)
         _, ddJ = strain.derivatives(self.law.beta)
         A = kin.weights * self.law.tangent(strain) + self._pressure(Jbar1) * ddJ[2]
+        local = kin.local_matrix(A)
+        if kin.per_element:  # G_g is element g's own: its rank-one term is an element matrix
+            G = kin.local_vector(kin.weights * strain.cofactor)
+            return kin.assemble(local + (U2 / V)[:, None, None] * G[:, :, None] * G[:, None, :])
         G = kin.groups @ kin.rows(strain.cofactor)  # ∂(V_g J̄_g)/∂d, one row per group
-        return (kin.matrix(A) + G.T @ sp.diags(U2 / V) @ G).tocsr()
+        return (kin.assemble(local) + G.T @ sp.diags(U2 / V) @ G).tocsr()
 
 
 @attrs.frozen

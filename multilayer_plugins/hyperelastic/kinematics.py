@@ -27,14 +27,28 @@ import scipy.sparse as sp
 
 @attrs.frozen(eq=False)
 class BandKinematics:
-    """H = F − I = H₀ + B d at every quadrature point of a band, its weights, and the assembly of element arrays."""
+    """H = F − I = H₀ + B d at every quadrature point of a band, its weights, and the assembly of element arrays.
 
-    B: np.ndarray  #: (5, local DOFs, elements, points): ∂F/∂d
+    B is held as (elements, points, 5, local DOFs), so that every contraction with it is a batched matrix
+    product; the global matrix's sparsity and where each element entry adds into it are found once.
+    """
+
+    B: np.ndarray  #: (elements, points, 5, local DOFs): ∂F/∂d
     H0: np.ndarray  #: (5,): F − I at d = 0
     weights: np.ndarray  #: (elements, points): the reference volume of each point (the measure's, over λ_z)
     dofs: np.ndarray  #: (local DOFs, elements): the global DOF of each local one
     ndofs: int  #: the global numbering's size
     groups: sp.csr_matrix  #: S (groups × elements·points): the weights of each point in each group's dilatation
+    per_element: bool  #: the groups are the elements (group e is element e)
+    pattern: tuple = attrs.field(init=False)  #: (indices, indptr, where each element entry adds) of the matrix
+
+    def __attrs_post_init__(self):
+        nloc, E = self.dofs.shape
+        rows = np.broadcast_to(self.dofs.T[:, :, None], (E, nloc, nloc)).ravel()
+        cols = np.broadcast_to(self.dofs.T[:, None, :], (E, nloc, nloc)).ravel()
+        entries, where = np.unique(rows * np.int64(self.ndofs) + cols, return_inverse=True)
+        indptr = np.searchsorted(entries // self.ndofs, np.arange(self.ndofs + 1))
+        object.__setattr__(self, "pattern", ((entries % self.ndofs).astype(np.int32), indptr, where.ravel()))
 
     @classmethod
     def build(cls, basis, radial_power: int, axial_stretch: float, order: int) -> BandKinematics:
@@ -62,32 +76,43 @@ class BandKinematics:
             if radial_power:
                 B[4, a] = phi[1] / r
         weights = np.asarray(basis.dx) / lz
-        groups = _element_groups(weights) if order >= 2 else _vertex_groups(weights, basis.mesh.t[:, basis.tind])
-        return cls(B, np.array([lz - 1.0, 0.0, 0.0, 0.0, 0.0]), weights, np.asarray(basis.element_dofs),
-                   int(basis.N), groups)
+        per_element = order >= 2
+        groups = _element_groups(weights) if per_element else _vertex_groups(weights, basis.mesh.t[:, basis.tind])
+        return cls(np.ascontiguousarray(B.transpose(2, 3, 0, 1)), np.array([lz - 1.0, 0.0, 0.0, 0.0, 0.0]),
+                   weights, np.asarray(basis.element_dofs), int(basis.N), groups, per_element)
 
     def gradient(self, d: np.ndarray) -> np.ndarray:
         """H = F − I (5, elements, points) at the displacement ``d`` (global numbering)."""
-        return self.H0[:, None, None] + np.einsum("iaeq,ae->ieq", self.B, d[self.dofs])
+        H = (self.B @ d[self.dofs].T[:, None, :, None])[..., 0]  # (E, Q, 5)
+        return self.H0[:, None, None] + H.transpose(2, 0, 1)
+
+    def local_vector(self, P: np.ndarray) -> np.ndarray:
+        """Σ_q P : ∂F/∂d per element (E, local DOFs), from the weighted first derivatives ``P`` (5, E, Q)."""
+        return np.einsum("eqia,ieq->ea", self.B, P, optimize=True)
 
     def vector(self, P: np.ndarray, size: bool = False) -> np.ndarray:
-        """Σ_q P : ∂F/∂d assembled: the global vector of the weighted first derivatives ``P`` (5, E, Q); with
-        ``size`` the elements' vectors' magnitudes summed instead (what the sum's round-off is relative to)."""
-        local = np.einsum("ieq,iaeq->ae", P, self.B)
+        """:meth:`local_vector` assembled into the global vector; with ``size`` the elements' vectors' magnitudes
+        summed instead (what the sum's round-off is relative to)."""
+        local = self.local_vector(P)
         local = np.abs(local) if size else local
-        return np.bincount(self.dofs.ravel(), weights=local.ravel(), minlength=self.ndofs)
+        return np.bincount(self.dofs.T.ravel(), weights=local.ravel(), minlength=self.ndofs)
 
-    def matrix(self, A: np.ndarray) -> sp.csr_matrix:
-        """Σ_q ∂F/∂dᵀ A ∂F/∂d assembled: the global matrix of the weighted second derivatives ``A`` (5, 5, E, Q)."""
-        local = np.einsum("iaeq,ijeq,jbeq->abe", self.B, A, self.B)
-        rows = np.broadcast_to(self.dofs[:, None, :], local.shape)
-        cols = np.broadcast_to(self.dofs[None, :, :], local.shape)
-        return sp.csr_matrix((local.ravel(), (rows.ravel(), cols.ravel())), shape=(self.ndofs, self.ndofs))
+    def local_matrix(self, A: np.ndarray) -> np.ndarray:
+        """Σ_q ∂F/∂dᵀ A ∂F/∂d per element (E, local DOFs, local DOFs), from the weighted second derivatives
+        ``A`` (5, 5, E, Q)."""
+        AB = A.transpose(2, 3, 0, 1) @ self.B  # (E, Q, 5, nloc)
+        return np.sum(self.B.transpose(0, 1, 3, 2) @ AB, axis=1)
+
+    def assemble(self, local: np.ndarray) -> sp.csr_matrix:
+        """The global matrix of the element matrices ``local`` (E, local DOFs, local DOFs)."""
+        indices, indptr, where = self.pattern
+        data = np.bincount(where, weights=local.ravel(), minlength=indices.size)
+        return sp.csr_matrix((data, indices, indptr), shape=(self.ndofs, self.ndofs))
 
     def rows(self, dJ: np.ndarray) -> sp.csr_matrix:
         """The derivative of the pointwise J in d, one row per quadrature point (elements·points × DOFs), from
         ``dJ`` = ∂J/∂F (5, E, Q)."""
-        local = np.einsum("ieq,iaeq->eqa", dJ, self.B)
+        local = np.einsum("eqia,ieq->eqa", self.B, dJ, optimize=True)
         E, Q, nloc = local.shape
         rows = np.broadcast_to(np.arange(E * Q).reshape(E, Q, 1), local.shape)
         cols = np.broadcast_to(self.dofs.T[:, None, :], local.shape)
