@@ -134,7 +134,7 @@ MATRIX = (
     Param("thickness", "H", "cm", gt=0.0, doc="radial thickness of the band (unloaded)"),
     Param("shear_modulus", "c", "dyn/cm²", gt=0.0, doc="the matrix's modulus c: Ψ = c/2 (Ī₁ − 3); μ = c at small strain"),
     Param("bulk_modulus", "κ", "dyn/cm²", gt=0.0,
-          doc="bulk modulus κ of U(J) = κ/2 (J − 1)²: nearly incompressible at κ ≥ 10³ c"),
+          doc="bulk modulus κ of U(J) = κ/2 (J − 1)²: nearly incompressible for κ ≫ the stiffest modulus reached"),
 )
 FIBRES = (
     Param("fibre_modulus", "k₁", "dyn/cm²", gt=0.0, doc="the fibres' modulus k₁"),
