@@ -28,7 +28,8 @@ The checks (:data:`CHECKS`):
     sparse matrices of the space's shape, finite, real, symmetric and
     positive semi-definite (smallest eigenvalue ≥ −1e-10 × the largest);
 ``forces``
-    on the same spaces, at :data:`FORCE_STATES` random states (d, v): the
+    on the same spaces, at :data:`FORCE_STATES` random states (d, v) (on a
+    band, displacements of strains ~ :data:`STATE_STRAIN`): the
     tangent K_T(d) against central differences of the force f, the force
     against central differences of the stored energy W (its gradient), the
     damping tangent against differences of the damping force g, the
@@ -69,7 +70,7 @@ import scipy.sparse as sp
 
 from multilayer.case.casefile import validate_data
 from multilayer.geometry.contract import Geometry
-from multilayer.geometry.spaces import make_line_space
+from multilayer.geometry.spaces import BandSpace, make_line_space
 from multilayer.plugin.interrupts import stopped
 from multilayer.plugin.problems import CaseError, check_params, check_value, describe
 from multilayer.plugin.records import LayerPlugin, Param
@@ -111,6 +112,10 @@ NONLINEAR_COUPLER = {"model": "monolithic"}
 FORCE_STATES = 3
 #: Their size: displacements of 10 % of the small spaces' radius (cm), velocities of 1 cm/s.
 STATE_SIZE = (0.05, 1.0)
+#: On a band, displacements of at most this times the spacing of its nodes across: strains of about this size (a
+#: displacement of 10 % of the radius would turn a thin band's elements inside out, J ≤ 0, where a hyperelastic
+#: energy is not defined).
+STATE_STRAIN = 0.05
 #: The central differences' step, relative to the state: (f(d + h w) − f(d − h w))/2h with |h w| = 1e-4 |d|.
 DIFFERENCE_STEP = 1e-4
 #: What a tangent or force may differ from the central difference of its force or energy, relative to their size
@@ -299,13 +304,23 @@ def _check_forces(subject: _Subject, workdir: Path) -> list[str]:
         if not isinstance(forms, LayerMatrices):
             return ["not checked: forms did not return LayerMatrices (see matrices)"]
         problem = linearity_problem(layer, forms)
-        return [problem] if problem else force_problems(forms, space.ndofs)
+        return [problem] if problem else force_problems(forms, space.ndofs, size=_state_size(space))
 
     return _on_small_spaces(subject, check)
 
 
-def force_problems(forms: LayerMatrices, n: int, seed: int = 0) -> list[str]:
-    """What is wrong with the forces of ``forms`` on ``n`` DOFs at :data:`FORCE_STATES` random states.
+def _state_size(space: Any) -> float:
+    """The size of the random displacements on ``space``: :data:`STATE_SIZE`, and on a band at most
+    :data:`STATE_STRAIN` times the spacing of its nodes across."""
+    if not isinstance(space, BandSpace):
+        return STATE_SIZE[0]
+    spacing = space.thickness / SMALL["band_cells"] / space.order
+    return min(STATE_SIZE[0], STATE_STRAIN * spacing)
+
+
+def force_problems(forms: LayerMatrices, n: int, seed: int = 0, size: float = STATE_SIZE[0]) -> list[str]:
+    """What is wrong with the forces of ``forms`` on ``n`` DOFs at :data:`FORCE_STATES` random states, their
+    displacements of ``size`` (cm).
 
     The forces of a :class:`~multilayer.wall.layer.LayerMatrices` pass:
 
@@ -314,7 +329,7 @@ def force_problems(forms: LayerMatrices, n: int, seed: int = 0) -> list[str]:
     []
     """
     rng = np.random.default_rng(seed)
-    size_d, size_v = STATE_SIZE
+    size_d, size_v = size, STATE_SIZE[1]
     h = DIFFERENCE_STEP
     problems = state_problems(forms, n)
     if problems:

@@ -82,13 +82,18 @@ class LinearElasticBand(ThickLayer):
         return LayerMatrices(M.tocsr(), sp.csr_matrix(M.shape), K.tocsr())
 
     def essential_dofs(self, space: BandSpace) -> np.ndarray:
-        comp = None if self.ends == "clamped" else "z"
-        fixed = [space.side_dofs("z=0", comp), space.side_dofs("z=L", comp)]
-        if self.faces == "sliding":
-            fixed += [space.side_dofs("inner", "r"), space.side_dofs("outer", "r")]
-        if self.outer == "clamped":
-            fixed.append(space.side_dofs("outer"))
-        return np.unique(np.concatenate(fixed))
+        return band_conditions(space, self.ends, self.faces, self.outer)
+
+
+def band_conditions(space: BandSpace, ends: str, faces: str, outer: str) -> np.ndarray:
+    """The DOFs a band's ``ends``, ``faces`` and ``outer`` conditions (:data:`CONDITIONS`) hold at zero."""
+    comp = None if ends == "clamped" else "z"
+    fixed = [space.side_dofs("z=0", comp), space.side_dofs("z=L", comp)]
+    if faces == "sliding":
+        fixed += [space.side_dofs("inner", "r"), space.side_dofs("outer", "r")]
+    if outer == "clamped":
+        fixed.append(space.side_dofs("outer"))
+    return np.unique(np.concatenate(fixed))
 
 
 def _factory(density, thickness, young=None, poisson=None, lame_mu=None, lame_lambda=None,
@@ -109,6 +114,15 @@ def _factory(density, thickness, young=None, poisson=None, lame_mu=None, lame_la
     return LinearElasticBand(density, thickness, lame_mu, lame_lambda, ends=ends, faces=faces, outer=outer)
 
 
+#: a band's conditions on its ends and faces (:func:`band_conditions`), shared by the thick layers
+CONDITIONS = (
+    Param("ends", "", "", "clamped", type=str, choices=("clamped", "sliding"),
+          doc="ends z = 0, L: clamped (d = 0) or sliding (d_z = 0)"),
+    Param("faces", "", "", "free", type=str, choices=("free", "sliding"),
+          doc="inner/outer faces: free (traction) or sliding (d_r = 0)"),
+    Param("outer", "", "", "free", type=str, choices=("free", "clamped"),
+          doc="outer face r = R + H: free (loaded by the external pressure) or clamped (d = 0)"),
+)
 PARAMS = (
     Param("density", "ρ₂", "g/cm³", gt=0.0, doc="mass density of the band"),
     Param("thickness", "H", "cm", gt=0.0, doc="radial thickness of the band"),
@@ -116,12 +130,7 @@ PARAMS = (
     Param("poisson", "σ", "1", None, gt=-1.0, lt=0.5, doc="Poisson ratio (with young)"),
     Param("lame_mu", "μ_s", "dyn/cm²", None, gt=0.0, doc="shear modulus (with lame_lambda)"),
     Param("lame_lambda", "λ_s", "dyn/cm²", None, doc="first Lamé constant (with lame_mu)"),
-    Param("ends", "", "", "clamped", type=str, choices=("clamped", "sliding"),
-          doc="ends z = 0, L: clamped (d = 0) or sliding (d_z = 0)"),
-    Param("faces", "", "", "free", type=str, choices=("free", "sliding"),
-          doc="inner/outer faces: free (traction) or sliding (d_r = 0)"),
-    Param("outer", "", "", "free", type=str, choices=("free", "clamped"),
-          doc="outer face r = R + H: free (loaded by the external pressure) or clamped (d = 0)"),
+    *CONDITIONS,
 )
 
 

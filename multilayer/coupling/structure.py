@@ -187,9 +187,14 @@ class StructureStep:
         r, size = loads.copy(), np.abs(loads)
         for i, m in enumerate(st.matrices):
             h = s.history([self.own_velocity(i, x) for x in states])
-            for term in (m.mass @ (s.inertia * mean + h) / dt, m.damping_force(mean), step_force(s, m, ds)):
+            force = step_force(s, m, ds)
+            # a nonlinear layer's force may sum large elements' forces that cancel (a prestressed band): its size
+            # is theirs (NonlinearForms.term_size)
+            force_size = np.abs(force) if m.linear else m.term_size(force, s.average(ds))
+            for term, magnitude in ((m.mass @ (s.inertia * mean + h) / dt, None), (m.damping_force(mean), None),
+                                    (force, force_size)):
                 r -= term
-                size += np.abs(term)
+                size += np.abs(term) if magnitude is None else magnitude
         return r, size
 
     def tangent(self, states: Sequence[State], mean: np.ndarray, dt: float | None = None) -> sp.csr_matrix:

@@ -101,7 +101,7 @@ def newton(residual: Residual | None, solve: Solve, start: np.ndarray | None, li
     r, size = residual(x)
     history = [relative(r, size)]
     iterations = 0
-    while history[-1] > tolerance:
+    while not history[-1] <= tolerance:  # (a nan residual is not converged: it fails below)
         if iterations == max_iterations or not np.isfinite(history[-1]):
             seen = ", ".join(f"{h:.2e}" for h in history)
             raise NewtonError(f"{what}: Newton's iteration did not converge in {iterations} corrections (relative "

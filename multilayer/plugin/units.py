@@ -166,7 +166,8 @@ def _display(goals: tuple[str, ...]) -> list[str]:
 #: (the keys' CGS unit, their names (empty: any), the plausible range of |value|, a typical value, the likely
 #: units with their size in the CGS unit, the CGS unit as a message writes it)
 _PLAUSIBLE = (
-    ("dyn/cm²", ("young", "lame_mu", "viscous_young"), (1e3, math.inf), 1e6, (("kPa", 1e4), ("MPa", 1e7)), "dyn/cm²"),
+    ("dyn/cm²", ("young", "lame_mu", "viscous_young", "shear_modulus", "bulk_modulus", "fibre_modulus"),
+     (1e3, math.inf), 1e6, (("kPa", 1e4), ("MPa", 1e7)), "dyn/cm²"),
     ("dyn/cm²", (), (1.0, math.inf), 1.3e4, (("mmHg", MMHG), ("kPa", 1e4)), "dyn/cm²"),
     ("g/cm³", (), (0.0, 100.0), 1.0, (("kg/m³", 1e-3),), "g/cm³"),
     ("P = g/(cm·s)", (), (0.0, 1.0), 0.035, (("cP", 1e-2),), "P"),

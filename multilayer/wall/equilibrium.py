@@ -27,7 +27,7 @@ import skfem
 from scipy.sparse.linalg import splu
 
 from multilayer.numerics.linsolve import SolverStats, factorize
-from multilayer.numerics.newton import TOLERANCE, newton
+from multilayer.numerics.newton import TOLERANCE, NewtonError, newton
 from multilayer.wall.stack import LUMEN, Stack
 
 #: the relative change of the deflection at which the iteration of a measure moving with η stops
@@ -37,6 +37,10 @@ ROUND_OFF = 1e-14
 FLOOR = 1e-10
 #: iterations allowed (the fluid's share of the stiffness, P⁰ k/R against the wall's, is small)
 MAX_ITERATIONS = 60
+#: a nonlinear wall's first load step, as a fraction of the loads, when one solve does not reach the equilibrium
+FIRST_STEP = 0.25
+#: the smallest load step before the static solve is given up
+SMALLEST_STEP = 2.0**-12
 
 
 class Unsettled(ValueError):
@@ -49,18 +53,59 @@ class Unsettled(ValueError):
         self.linear = linear
 
 
-def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None) -> np.ndarray:
+def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None,
+                      start: np.ndarray | None = None, tolerance: float = TOLERANCE) -> np.ndarray:
     """The wall displacement d (wall numbering, essential DOFs zero) with f_int(d) = f under the lumen pressure
     ``pressure`` and the outer surface's ``external`` (dyn/cm²).  ``stats``: where a nonlinear wall's Newton
-    solves and factorizations are counted.
+    solves and factorizations are counted.  ``start``: where a nonlinear wall's iteration starts (default
+    d = 0), e.g. the equilibrium under the last of a sequence of growing pressures (load steps: a large
+    deformation that Newton's method does not reach from rest in one).  ``tolerance``: the relative residual a
+    nonlinear wall's Newton iteration ends at (a nearly incompressible band under a large deformation has a
+    round-off floor of about κ·10⁻¹⁶|d|/(h σ), κ its bulk modulus, σ its stress, h its cells' size, which may
+    lie above the default).
+
+    A nonlinear wall that Newton's method does not bring from ``start`` to the equilibrium in one solve is
+    brought there by load steps (:func:`_in_load_steps`).
 
     Raises
     ------
     Unsettled
         When the iteration of a measure moving with the lumen does not settle (a ValueError).
     NewtonError
-        When a nonlinear wall's Newton iteration does not converge.
+        When a nonlinear wall's Newton iteration does not converge, even in the smallest load steps.
     """
+    try:
+        return _settle(stack, pressure, external, stats, start, tolerance)
+    except NewtonError:
+        if stack.linear:
+            raise
+    return _in_load_steps(stack, pressure, external, stats, start, tolerance)
+
+
+def _in_load_steps(stack: Stack, pressure: float, external: float, stats: SolverStats | None,
+                   start: np.ndarray | None, tolerance: float) -> np.ndarray:
+    """The nonlinear wall's equilibrium under the loads scaled by s from 0 to 1, in steps that start at
+    :data:`FIRST_STEP`, halve where Newton's iteration fails (down to :data:`SMALLEST_STEP`, then the failure is
+    raised) and double after a success; each step from the last one's equilibrium (the first from ``start``)."""
+    d = _settle(stack, 0.0, 0.0, stats, start, tolerance)
+    done, step = 0.0, FIRST_STEP
+    while done < 1.0:
+        step = min(step, 1.0 - done)
+        try:
+            d = _settle(stack, (done + step) * pressure, (done + step) * external, stats, d, tolerance)
+        except NewtonError:
+            if step <= SMALLEST_STEP:
+                raise
+            step /= 2.0
+            continue
+        done += step
+        step *= 2.0
+    return d
+
+
+def _settle(stack: Stack, pressure: float, external: float, stats: SolverStats | None, start: np.ndarray | None,
+            tolerance: float) -> np.ndarray:
+    """:func:`static_deflection` in one solve from ``start``."""
     space = stack.space
     k = space.lines[LUMEN].geometry.radial_power
     free = stack.free
@@ -68,9 +113,11 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     if linear:
         factors = splu(stack.stiffness.tocsc()[free][:, free]).solve
     outer = -external * space.line_load(space.outer_line)
-    settled = ROUND_OFF if linear else TOLERANCE
+    settled = ROUND_OFF if linear else tolerance
     stats = SolverStats() if stats is None else stats
     d, previous, first = np.zeros(space.ndofs), np.inf, None
+    if start is not None and not linear:
+        d = stack.zero_fixed(start)
     for _ in range(MAX_ITERATIONS):
         eta = space.restrictions[LUMEN] @ d
         f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
@@ -79,7 +126,7 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
             new[free] = newton(None, lambda x, r: factors(r), None, linear=True, first=f[free]).x
         else:
             new[free] = newton(lambda x: _out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
-                               d[free], stats=stats, what="the wall's static equilibrium").x
+                               d[free], stats=stats, tolerance=tolerance, what="the wall's static equilibrium").x
         change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
         d = new
         first = new if first is None else first
@@ -99,10 +146,12 @@ def _full(stack: Stack, x: np.ndarray) -> np.ndarray:
 
 
 def _out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms."""
-    internal = [m.force(_full(stack, x)) for m in stack.matrices]
+    """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms (a nonlinear layer's
+    :meth:`~multilayer.wall.layer.NonlinearForms.term_size`)."""
+    d = _full(stack, x)
+    internal = [m.force(d) for m in stack.matrices]
     r = f - sum(internal)
-    size = np.abs(f) + sum(np.abs(term) for term in internal)
+    size = np.abs(f) + sum(np.abs(term) if m.linear else m.term_size(term, d) for m, term in zip(stack.matrices, internal))
     return r[stack.free], size[stack.free]
 
 

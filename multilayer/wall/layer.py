@@ -101,6 +101,20 @@ class NonlinearForms(LayerMatrices):
         """Δt v·g(v)."""
         return dt * float(v @ self.damping_force(v))
 
+    def force_size(self, d: np.ndarray) -> np.ndarray | None:
+        """Entry by entry, the size of the terms the force f(d) adds up: the scale its round-off is relative to,
+        for the residual of a Newton solve (:mod:`multilayer.numerics.newton`).  None by default: the force's
+        own magnitude is its scale.  A layer whose force at a DOF sums large contributions that cancel (the
+        elements' forces in a prestressed band, at equilibrium under no load) returns their magnitudes summed,
+        so that the solve's tolerance is relative to what round-off leaves."""
+        return None
+
+    def term_size(self, term: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """The size of a force ``term`` of the layer at ``d`` in a residual: |term|, or :meth:`force_size` where
+        that is larger."""
+        own = self.force_size(d)
+        return np.abs(term) if own is None else np.maximum(np.abs(term), own)
+
     def scattered(self, P: sp.spmatrix) -> LayerMatrices:
         """These forms in another numbering: the matrices P A Pᵀ, the forces P f(Pᵀ d) (:class:`MovedForms`)."""
         P = sp.csr_matrix(P)
@@ -126,6 +140,10 @@ class MovedForms(NonlinearForms):
 
     def tangent(self, d: np.ndarray) -> sp.spmatrix:
         return (self.P @ sp.csr_matrix(self.own.tangent(self.R @ d)) @ self.R).tocsr()
+
+    def force_size(self, d: np.ndarray) -> np.ndarray | None:
+        own = self.own.force_size(self.R @ d)
+        return None if own is None else self.P @ own
 
     def damping_force(self, v: np.ndarray) -> np.ndarray:
         return self.P @ self.own.damping_force(self.R @ v)

@@ -1,0 +1,136 @@
+"""The deformation gradient of a band at its quadrature points, and the groups its dilatation is averaged over.
+
+Total Lagrangian: every quantity is on the reference band.  The band's mesh is its reference configuration in r
+and its reference stretched by λ_z (``axial_stretch``) in z, Z = z/λ_z: an artery held at λ_z times its
+unloaded length, the mesh being as long as the fluid's domain.  With d = (d_z, d_r) the displacement from the
+mesh, x = (z + d_z, r + d_r), so
+
+    F = [[λ_z (1 + ∂_z d_z), ∂_r d_z, 0], [λ_z ∂_z d_r, 1 + ∂_r d_r, 0], [0, 0, 1 + d_r/r]]
+
+in a tube (radial power k = 1; the hoop stretch 1 + d_r/r), and F_θΘ = 1 in a planar channel (plane strain,
+the out-of-plane direction standing for θ).  A reference volume is the mesh's over λ_z.  F is affine in d:
+H = F − I = H₀ + B d, with B (5 entries of F × local DOFs × elements × points) built once per band (the laws
+take H, not F, to keep their small strains to round-off).
+
+The volumetric energy is taken at the dilatation averaged over groups of quadrature points (mean dilatation,
+theory §1): each element of a P2 band (P2 displacement, P0 dilatation: stable, no volumetric locking), each
+vertex's patch of a P1 band (the elements around the vertex, a third of each one's volume; P1 with one
+dilatation per element locks).  ``S`` (groups × points) holds the weights: J̄ = S J / S 1.
+"""
+
+from __future__ import annotations
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+
+@attrs.frozen(eq=False)
+class BandKinematics:
+    """H = F − I = H₀ + B d at every quadrature point of a band, its weights, and the assembly of element arrays.
+
+    B is held as (elements, points, 5, local DOFs), so that every contraction with it is a batched matrix
+    product; the global matrix's sparsity and where each element entry adds into it are found once.
+    """
+
+    B: np.ndarray  #: (elements, points, 5, local DOFs): ∂F/∂d
+    H0: np.ndarray  #: (5,): F − I at d = 0
+    weights: np.ndarray  #: (elements, points): the reference volume of each point (the measure's, over λ_z)
+    dofs: np.ndarray  #: (local DOFs, elements): the global DOF of each local one
+    ndofs: int  #: the global numbering's size
+    groups: sp.csr_matrix  #: S (groups × elements·points): the weights of each point in each group's dilatation
+    per_element: bool  #: the groups are the elements (group e is element e)
+    pattern: tuple = attrs.field(init=False)  #: (indices, indptr, where each element entry adds) of the matrix
+
+    def __attrs_post_init__(self):
+        nloc, E = self.dofs.shape
+        rows = np.broadcast_to(self.dofs.T[:, :, None], (E, nloc, nloc)).ravel()
+        cols = np.broadcast_to(self.dofs.T[:, None, :], (E, nloc, nloc)).ravel()
+        entries, where = np.unique(rows * np.int64(self.ndofs) + cols, return_inverse=True)
+        indptr = np.searchsorted(entries // self.ndofs, np.arange(self.ndofs + 1))
+        object.__setattr__(self, "pattern", ((entries % self.ndofs).astype(np.int32), indptr, where.ravel()))
+
+    @classmethod
+    def build(cls, basis, radial_power: int, axial_stretch: float, order: int) -> BandKinematics:
+        """The kinematics of a band on the vector basis ``basis`` (its ``dx`` carrying the measure).
+
+        Raises
+        ------
+        ValueError
+            For a geometry of radial power other than 0 or 1 (the band has one hoop direction at most).
+        """
+        if radial_power not in (0, 1):
+            raise ValueError(f"a hyperelastic band takes a planar (k = 0) or axisymmetric (k = 1) geometry, got a "
+                             f"radial power {radial_power}")
+        lz = float(axial_stretch)
+        nloc = len(basis.basis)
+        E, Q = basis.dx.shape
+        B = np.zeros((5, nloc, E, Q))
+        r = basis.global_coordinates().value[1]
+        for a, (phi,) in enumerate(basis.basis):
+            grad = phi.grad  # (component, derivative, E, Q): ∂u_i/∂x_j with x = (z, r), u = (d_z, d_r)
+            B[0, a] = lz * grad[0, 0]
+            B[1, a] = grad[0, 1]
+            B[2, a] = lz * grad[1, 0]
+            B[3, a] = grad[1, 1]
+            if radial_power:
+                B[4, a] = phi[1] / r
+        weights = np.asarray(basis.dx) / lz
+        per_element = order >= 2
+        groups = _element_groups(weights) if per_element else _vertex_groups(weights, basis.mesh.t[:, basis.tind])
+        return cls(np.ascontiguousarray(B.transpose(2, 3, 0, 1)), np.array([lz - 1.0, 0.0, 0.0, 0.0, 0.0]),
+                   weights, np.asarray(basis.element_dofs), int(basis.N), groups, per_element)
+
+    def gradient(self, d: np.ndarray) -> np.ndarray:
+        """H = F − I (5, elements, points) at the displacement ``d`` (global numbering)."""
+        H = (self.B @ d[self.dofs].T[:, None, :, None])[..., 0]  # (E, Q, 5)
+        return self.H0[:, None, None] + H.transpose(2, 0, 1)
+
+    def local_vector(self, P: np.ndarray) -> np.ndarray:
+        """Σ_q P : ∂F/∂d per element (E, local DOFs), from the weighted first derivatives ``P`` (5, E, Q)."""
+        return np.einsum("eqia,ieq->ea", self.B, P, optimize=True)
+
+    def vector(self, P: np.ndarray, size: bool = False) -> np.ndarray:
+        """:meth:`local_vector` assembled into the global vector; with ``size`` the elements' vectors' magnitudes
+        summed instead (what the sum's round-off is relative to)."""
+        local = self.local_vector(P)
+        local = np.abs(local) if size else local
+        return np.bincount(self.dofs.T.ravel(), weights=local.ravel(), minlength=self.ndofs)
+
+    def local_matrix(self, A: np.ndarray) -> np.ndarray:
+        """Σ_q ∂F/∂dᵀ A ∂F/∂d per element (E, local DOFs, local DOFs), from the weighted second derivatives
+        ``A`` (5, 5, E, Q)."""
+        AB = A.transpose(2, 3, 0, 1) @ self.B  # (E, Q, 5, nloc)
+        return np.sum(self.B.transpose(0, 1, 3, 2) @ AB, axis=1)
+
+    def assemble(self, local: np.ndarray) -> sp.csr_matrix:
+        """The global matrix of the element matrices ``local`` (E, local DOFs, local DOFs)."""
+        indices, indptr, where = self.pattern
+        data = np.bincount(where, weights=local.ravel(), minlength=indices.size)
+        return sp.csr_matrix((data, indices, indptr), shape=(self.ndofs, self.ndofs))
+
+    def rows(self, dJ: np.ndarray) -> sp.csr_matrix:
+        """The derivative of the pointwise J in d, one row per quadrature point (elements·points × DOFs), from
+        ``dJ`` = ∂J/∂F (5, E, Q)."""
+        local = np.einsum("eqia,ieq->eqa", self.B, dJ, optimize=True)
+        E, Q, nloc = local.shape
+        rows = np.broadcast_to(np.arange(E * Q).reshape(E, Q, 1), local.shape)
+        cols = np.broadcast_to(self.dofs.T[:, None, :], local.shape)
+        return sp.csr_matrix((local.ravel(), (rows.ravel(), cols.ravel())), shape=(E * Q, self.ndofs))
+
+
+def _element_groups(weights: np.ndarray) -> sp.csr_matrix:
+    """One group per element, each point weighted by its volume."""
+    E, Q = weights.shape
+    return sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(E), Q), np.arange(E * Q))), shape=(E, E * Q))
+
+
+def _vertex_groups(weights: np.ndarray, triangles: np.ndarray) -> sp.csr_matrix:
+    """One group per vertex of the band: a third of every point of each element around it."""
+    E, Q = weights.shape
+    vertices, owner = np.unique(triangles, return_inverse=True)
+    owner = owner.reshape(triangles.shape)  # (3, E): the group of each element's vertices
+    rows = np.repeat(owner[:, :, None], Q, axis=2)
+    cols = np.broadcast_to(np.arange(E * Q).reshape(1, E, Q), rows.shape)
+    data = np.broadcast_to(weights[None] / 3.0, rows.shape)
+    return sp.csr_matrix((data.ravel(), (rows.ravel(), cols.ravel())), shape=(len(vertices), E * Q))
