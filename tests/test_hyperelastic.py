@@ -20,7 +20,7 @@ from multilayer.runner.loop import run_case
 from multilayer.testing import LayerConformance
 from multilayer.wall.stack import LUMEN, Stack, WallSpace
 from multilayer_plugins.axisymmetric import Axisymmetric
-from multilayer_plugins.hyperelastic import MEDIA, hgo, neo_hookean
+from multilayer_plugins.hyperelastic.band import MEDIA, hgo, neo_hookean
 from multilayer_plugins.hyperelastic.laws import Isochoric, Strain
 from multilayer_plugins.linear_elastic import LinearElasticBand
 from multilayer_plugins.planar import Planar

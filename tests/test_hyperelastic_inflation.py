@@ -13,7 +13,7 @@ import pytest
 from multilayer.wall.equilibrium import static_deflection
 from multilayer.wall.stack import LUMEN, Stack, WallSpace
 from multilayer_plugins.axisymmetric import Axisymmetric
-from multilayer_plugins.hyperelastic import hgo
+from multilayer_plugins.hyperelastic.band import hgo
 
 _spec = importlib.util.spec_from_file_location("hgo_inflation", Path(__file__).parents[1] / "scripts" / "hgo_inflation.py")
 ref = importlib.util.module_from_spec(_spec)

@@ -66,7 +66,7 @@ class BandKinematics:
         nloc = len(basis.basis)
         E, Q = basis.dx.shape
         B = np.zeros((5, nloc, E, Q))
-        r = basis.global_coordinates().value[1]
+        r = basis.global_coordinates()[1]
         for a, (phi,) in enumerate(basis.basis):
             grad = phi.grad  # (component, derivative, E, Q): ∂u_i/∂x_j with x = (z, r), u = (d_z, d_r)
             B[0, a] = lz * grad[0, 0]

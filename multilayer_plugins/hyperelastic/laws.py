@@ -32,6 +32,8 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
+from multilayer_plugins.hyperelastic.membrane_laws import Energy, hgo_fibre
+
 
 def transpose(M: np.ndarray) -> np.ndarray:
     """Mᵀ of a tensor held as (zZ, zR, rZ, rR, θΘ)."""
@@ -105,8 +107,9 @@ class Isochoric:
     """Ψ_iso of the matrix (c) and the fibres (k₁, k₂ at ±β).  Units: c, k₁ in dyn/cm², k₂ dimensionless, β in
     radians; k₁ = 0 is neo-Hookean.
 
-    The fibres' energy φ(Ī₄) = k₁/k₂ (exp(k₂ e²) − 1) with e = Ī₄ − 1 where Ī₄ > 1, 0 elsewhere: C¹ at e = 0, so
-    the force is continuous and the tangent jumps by 2k₁ as a fibre family starts to bear load.
+    The fibres' energy φ(Ī₄) = k₁/k₂ (exp(k₂ e²) − 1) with e = Ī₄ − 1 where Ī₄ ≥ 1, 0 elsewhere: C¹ at e = 0, so
+    the force is continuous and the tangent jumps by 2k₁ as the fibres start to bear load (at e = 0 exactly, at
+    rest, it is the loading one: the fibres' stiffness as the wall is inflated from rest).
     """
 
     c: float
@@ -114,11 +117,11 @@ class Isochoric:
     k2: float = 1.0
     beta: float = 0.0
 
-    def _fibres(self, s: Strain, a: np.ndarray, am1: np.ndarray):
-        """e = Ī₄ − 1 where positive (else 0), exp(k₂e²), φ' and φ''."""
-        e = np.maximum(a * s.I4m1 + am1, 0.0)
-        ex = np.exp(self.k2 * e**2)
-        return e, ex, 2.0 * self.k1 * e * ex, np.where(e > 0.0, 2.0 * self.k1 * ex * (1.0 + 2.0 * self.k2 * e**2), 0.0)
+    def _fibres(self, s: Strain, a: np.ndarray, am1: np.ndarray) -> Energy:
+        """The two families' energy φ(Ī₄) = 2 × :func:`~.membrane_laws.hgo_fibre` at e = Ī₄ − 1 = a(I₄ − 1) + (a − 1),
+        with φ' and φ'' in Ī₄ (both families stretch alike)."""
+        one = hgo_fibre(a * s.I4m1 + am1, self.k1, self.k2)
+        return Energy(2.0 * one.value, 2.0 * one.first, 2.0 * one.second)
 
     def energy(self, s: Strain) -> np.ndarray:
         """Ψ_iso: the matrix c/2 (a I₁ − 3) = c/2 a (Q + (s − 1)²(2s + 1)), s = J^(1/3), and the fibres.
@@ -129,8 +132,7 @@ class Isochoric:
         a, am1, sm1 = _powers(s.J1)
         psi = 0.5 * self.c * a * (s.Q + sm1**2 * (3.0 + 2.0 * sm1))
         if self.k1:
-            e = self._fibres(s, a, am1)[0]
-            psi = psi + self.k1 / self.k2 * np.expm1(self.k2 * e**2)
+            psi = psi + self._fibres(s, a, am1).value
         return psi
 
     def stress(self, s: Strain) -> np.ndarray:
@@ -149,7 +151,7 @@ class Isochoric:
                              inv_T[4] * Ht[4]])
         P = self.c * a * (s.H + FinvT_Ht - s.I1m3 / 3.0 * inv_T)
         if self.k1:
-            d1 = self._fibres(s, a, am1)[2]
+            d1 = self._fibres(s, a, am1).first
             dI4 = 2.0 * np.stack([np.sin(self.beta) ** 2 * s.F[0], 0.0 * s.F[1], np.sin(self.beta) ** 2 * s.F[2],
                                   0.0 * s.F[3], np.cos(self.beta) ** 2 * s.F[4]])
             P = P + d1 * a * (dI4 - 2.0 / 3.0 * s.I4 * inv_T)
@@ -168,7 +170,8 @@ class Isochoric:
         h[0, 2] = h[2, 0] = 0.5 * c * a1
         h[2, 2] = 0.5 * c * I1 * a2
         if self.k1:
-            _, _, d1, d2 = self._fibres(s, a, am1)
+            fibres = self._fibres(s, a, am1)
+            d1, d2 = fibres.first, fibres.second
             g[1] += d1 * a
             g[2] += d1 * a1 * I4
             h[1, 1] += d2 * a**2

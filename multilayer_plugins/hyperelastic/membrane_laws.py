@@ -60,20 +60,22 @@ def neo_hookean(I1: np.ndarray, c: float) -> Energy:
     return Energy(0.5 * c * (I1 - 3.0), np.full_like(I1, 0.5 * c), np.zeros_like(I1))
 
 
-def hgo_fibre(I4: np.ndarray, k1: float, k2: float) -> Energy:
-    """One HGO fibre family, W = k1/(2k2) (exp(k2 E²) − 1) with E = I4 − 1 in extension, W = 0 in compression
-    (k1 dyn/cm², k2 dimensionless; k2 = 0 is the limit k1 E²/2).
+def hgo_fibre(E: np.ndarray, k1: float, k2: float) -> Energy:
+    """One HGO fibre family at its strain E = I4 − 1: W = k1/(2k2) (exp(k2 E²) − 1) in extension (E ≥ 0), W = 0 in
+    compression (k1 dyn/cm², k2 dimensionless; k2 = 0 is the limit k1 E²/2).  W' and W'' are in I4.
 
-    W is C¹ at I4 = 1 (W' = k1 E exp(k2E²) → 0) but W'' jumps there from 0 to k1: at I4 = 1 exactly the second
-    derivative is the loading one, k1 (the fibres' stiffness as the wall is inflated from rest).
+    E is taken as its caller forms it, from strains that vanish at rest, so that E = 0 there exactly (I4 − 1
+    formed from I4 would not be).  W is C¹ at E = 0 (W' = k1 E exp(k2E²) → 0) but W'' jumps there from 0 to
+    k1: at E = 0 exactly the second derivative is the loading one, k1 (the fibres' stiffness as the wall is
+    inflated from rest).
 
-    >>> e = hgo_fibre(np.array([0.9, 1.0, 1.1]), 2.0, 0.0)
+    >>> e = hgo_fibre(np.array([-0.1, 0.0, 0.1]), 2.0, 0.0)
     >>> e.value.round(12).tolist(), e.first.round(12).tolist(), e.second.tolist()
     ([0.0, 0.0, 0.01], [0.0, 0.0, 0.2], [0.0, 2.0, 2.0])
     """
-    I4 = np.asarray(I4, dtype=float)
-    active = I4 >= 1.0
-    E = np.where(active, I4 - 1.0, 0.0)
+    E = np.asarray(E, dtype=float)
+    active = E >= 0.0
+    E = np.where(active, E, 0.0)
     x = k2 * E * E
     growth = np.exp(x)
     # k1/(2k2) expm1(k2E²) = k1E²/2 · expm1(x)/x, finite as k2 → 0
@@ -117,9 +119,9 @@ class MembraneLaw:
         parts = [(neo_hookean(I1[0], self.c), I1, 1.0)]
         if self.k1 > 0.0:
             cos2, sin2 = math.cos(math.radians(self.angle)) ** 2, math.sin(math.radians(self.angle)) ** 2
-            # I4 − 1 summed from the stretches' own strains, so that it is 0 exactly at rest (cos² + sin² need not
-            # round to 1) and the fibres' loading stiffness counts there
-            I4 = (1.0 + ((x * x - 1.0) * cos2 + (y * y - 1.0) * sin2), 2.0 * x * cos2, 2.0 * y * sin2,
+            # I4 − 1 (the first entry) summed from the stretches' own strains, so that it is 0 exactly at rest
+            # (cos² + sin² need not round to 1) and the fibres' loading stiffness counts there
+            I4 = ((x * x - 1.0) * cos2 + (y * y - 1.0) * sin2, 2.0 * x * cos2, 2.0 * y * sin2,
                   np.full_like(x, 2.0 * cos2), np.zeros_like(x), np.full_like(x, 2.0 * sin2))
             parts.append((hgo_fibre(I4[0], self.k1, self.k2), I4, 2.0))  # two families, stretched alike
         out = [np.zeros_like(x) for _ in range(6)]

@@ -1,7 +1,7 @@
 """``neo-hookean-membrane``, ``hgo-membrane``: a thin hyperelastic wall on a line, its hoop tension from a strain energy.
 
 The layer is the thin-walled limit of an incompressible hyperelastic tube
-(:mod:`multilayer_plugins.membrane_laws`): a wall of thickness h (at rest,
+(:mod:`multilayer_plugins.hyperelastic.membrane_laws`): a wall of thickness h (at rest,
 unstretched) on the line r = R, whose point at z moves to r = R + η(z).
 Its stretches are
 
@@ -61,7 +61,7 @@ from multilayer.geometry.spaces import LineSpace
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import LayerPlugin, Param
 from multilayer.wall.layer import NonlinearForms, ThinLayer
-from multilayer_plugins.membrane_laws import MembraneEnergy, MembraneLaw
+from multilayer_plugins.hyperelastic.membrane_laws import MembraneEnergy, MembraneLaw
 from multilayer_plugins.thin_shell import LineOperators, mass_params
 
 
