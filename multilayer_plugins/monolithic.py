@@ -51,7 +51,7 @@ from multilayer.coupling.kit import (
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.numerics.assembly.pattern import Pattern
-from multilayer.numerics.linsolve import ReusingSolver
+from multilayer.numerics.linsolve import LowRank, ReusingSolver
 from multilayer.numerics.newton import newton
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
@@ -120,14 +120,20 @@ class Monolithic(ThickLumen, Coupler):
             fixed = np.concatenate([fixed_f, glob[stack.fixed]])
 
             def matrix(free_x):
-                """The system's matrix with the wall's tangent at ``free_x`` (its constant matrix when linear)."""
-                A_wall = held["wall"]
+                """The system's matrix with the wall's tangent at ``free_x`` (its constant matrix when linear), and
+                the low-rank part of that tangent on the free unknowns (None when it has none)."""
+                A_wall, update = held["wall"], None
                 if not stack.linear:
-                    A_wall = sp.coo_matrix(structure.tangent(history, unknowns(free_x)[glob], dt))
+                    A_wall, update = structure.jacobian(history, unknowns(free_x)[glob], dt)
+                    A_wall = sp.coo_matrix(A_wall)
                 layout = held["layout"]
                 if layout is None or not layout.fits(A_f, A_wall):
                     layout = held["layout"] = Layout(A_f, A_wall, glob, fixed, n)
-                return layout, layout.fill(A_f.data, A_wall.data)
+                if update is not None:  # the wall's numbering into the system's (glob is one-to-one)
+                    U, W = np.zeros((n, update.U.shape[1])), np.zeros((n, update.U.shape[1]))
+                    U[glob], W[glob] = update.U, update.W
+                    update = LowRank(U[layout.free], W[layout.free])
+                return layout, layout.fill(A_f.data, A_wall.data), update
 
             def unknowns(free_x):
                 """The system's unknowns: the fixed values, and ``free_x`` on the free ones (None: zero)."""
@@ -136,7 +142,7 @@ class Monolithic(ThickLumen, Coupler):
                     out[held["layout"].free] = free_x
                 return out
 
-            layout, data = matrix(None)  # (a nonlinear wall's tangent at the start)
+            layout, data, _ = matrix(None)  # (a nonlinear wall's tangent at the start)
             if stack.linear:  # the first correction from zero: the linear system's solution
                 b = np.zeros(n)
                 b[: fluid.ndofs] = b_f
@@ -160,8 +166,8 @@ class Monolithic(ThickLumen, Coupler):
                     return r[held["layout"].free], size[held["layout"].free]
 
                 def solve(free_x, r):
-                    layout, data = matrix(free_x)
-                    return solver.solve(layout.free_free.matrix(data, keep=True), r)
+                    layout, data, update = matrix(free_x)
+                    return solver.solve(layout.free_free.matrix(data, keep=True), r, update=update)
 
                 result = newton(residual, solve, np.zeros(layout.free.size), stats=solver.stats,
                                 what="the monolithic system")

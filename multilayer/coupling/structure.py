@@ -36,7 +36,13 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from multilayer.numerics.linsolve import Reuse, ReusingSolver, SolverStats, factorize
+from multilayer.numerics.linsolve import (
+    LowRank,
+    Reuse,
+    ReusingSolver,
+    SolverStats,
+    factorize,
+)
 from multilayer.numerics.newton import NewtonResult, newton
 from multilayer.numerics.timescheme import TimeScheme
 from multilayer.scene.state import State, WallState
@@ -152,7 +158,10 @@ class StructureStep:
                 return r[free], size[free]
 
             def solve(x, r):
-                return self._nonlinear_solver().solve(self.tangent(states, self._full(x), dt)[free][:, free], r)
+                J, update = self.jacobian(states, self._full(x), dt)
+                if update is not None:
+                    update = LowRank(update.U[free], update.W[free])
+                return self._nonlinear_solver().solve(J[free][:, free], r, update=update)
 
             result = newton(residual, solve, np.zeros(free.size), stats=self._stats)
         return self.finish(states, self._full(result.x), forces, dt, result)
@@ -167,6 +176,26 @@ class StructureStep:
         if self._shared["newton"] is None:
             self._shared["newton"] = ReusingSolver(self._stats, self._backend, self._reuse)
         return self._shared["newton"]
+
+    def _layer_dofs(self, index: int, forms: LayerMatrices) -> np.ndarray:
+        """The DOFs layer ``index``'s matrices touch (:func:`layer_dofs`), found once."""
+        masks = self._shared.setdefault("dofs", {})
+        if index not in masks:
+            masks[index] = layer_dofs(forms)
+        return masks[index]
+
+    def _gradient(self, index: int, forms: LayerMatrices, ds: Sequence[np.ndarray]) -> DiscreteGradient:
+        """Layer ``index``'s :func:`discrete_gradient` from dⁿ = ds[1] to d^{n+1} = ds[0]; the last one kept, so that
+        a Newton correction's residual and tangent at one V̄ evaluate it once, and W(dⁿ) kept for the step."""
+        d1, d0 = ds[0], ds[1]
+        cache = self._shared.setdefault("gradients", {})
+        last = cache.get(index)
+        if last is not None and np.array_equal(last[0], d1) and np.array_equal(last[1], d0):
+            return last[2]
+        before = last[2].before if last is not None and np.array_equal(last[1], d0) else None
+        gradient = discrete_gradient(forms, d1, d0, self._layer_dofs(index, forms), before)
+        cache[index] = (d1.copy(), d0.copy(), gradient)
+        return gradient
 
     # -- the nonlinear step: its residual and tangent ----------------------------------
     def levels(self, states: Sequence[State], mean: np.ndarray, dt: float) -> list[np.ndarray]:
@@ -187,7 +216,7 @@ class StructureStep:
         r, size = loads.copy(), np.abs(loads)
         for i, m in enumerate(st.matrices):
             h = s.history([self.own_velocity(i, x) for x in states])
-            force = step_force(s, m, ds)
+            force = self._gradient(i, m, ds).force if not m.linear and midpoint(s) else step_force(s, m, ds)
             # a nonlinear layer's force may sum large elements' forces that cancel (a prestressed band): its size
             # is theirs (NonlinearForms.term_size)
             force_size = np.abs(force) if m.linear else m.term_size(force, s.average(ds))
@@ -198,19 +227,39 @@ class StructureStep:
         return r, size
 
     def tangent(self, states: Sequence[State], mean: np.ndarray, dt: float | None = None) -> sp.csr_matrix:
-        """−∂(:meth:`residual`)/∂V̄ at V̄ = ``mean``: (α₀/β₀) M/Δt + Σ_i C_T,i(V̄) + (β₀Δt/α₀) Σ_i K_T,i(d̄).
+        """The sparse part of −∂(:meth:`residual`)/∂V̄ at V̄ = ``mean`` (:meth:`jacobian`'s first)."""
+        return self.jacobian(states, mean, dt)[0]
 
-        Exact where the scheme's force is the force at d̄ (backward Euler, BDF2); for Crank–Nicolson's
-        discrete gradient it leaves out the derivative of its correction, which is of the order of Δd
-        (:func:`step_force`): the iteration then converges at a rate of that order.
+    def jacobian(self, states: Sequence[State], mean: np.ndarray,
+                 dt: float | None = None) -> tuple[sp.csr_matrix, LowRank | None]:
+        """−∂(:meth:`residual`)/∂V̄ at V̄ = ``mean``, exactly: a sparse matrix and a low-rank term (None when there
+        is none), both in wall numbering.
+
+        The sparse part is (α₀/β₀) M/Δt + Σ_i C_T,i(V̄) + (β₀Δt/α₀) Σ_i K_T,i(d̄): all of it where the scheme's
+        force is the force at d̄ (backward Euler, BDF2).  Crank–Nicolson's discrete gradient adds the
+        derivative of its correction (:func:`gradient_derivative`): a diagonal on the layer's DOFs, kept in the
+        sparse part, and a rank-one term per nonlinear layer, dense, which the solver adds by Woodbury's
+        formula (:class:`~multilayer.numerics.linsolve.LowRank`) — so that Newton's iteration stays quadratic.
         """
         st, s, dt = self.stack, self.scheme, self.dt if dt is None else dt
-        dbar = s.average(self.levels(states, mean, dt))
+        ds = self.levels(states, mean, dt)
+        dbar = s.average(ds)
         gain = s.displacement_gain(dt)
         J = st.mass * (s.inertia / dt)
-        for m in st.matrices:
-            J = J + m.damping_tangent(mean) + m.tangent(dbar) * gain
-        return sp.csr_matrix(J)
+        columns, rows = [], []
+        for i, m in enumerate(st.matrices):
+            K = m.tangent(dbar)
+            J = J + m.damping_tangent(mean) + K * gain
+            if not m.linear and midpoint(s):
+                gradient = self._gradient(i, m, ds)
+                if gradient.coefficient:
+                    # d^{n+1} = (Δt V̄ − Σ_{k≥1} α_k d^{n+1−k})/α₀: its derivative in V̄ is Δt/α₀
+                    diagonal, (u, w) = gradient_derivative(m, gradient, K, ds[0], self._layer_dofs(i, m))
+                    J = J + sp.diags(diagonal * (dt / s.alpha[0]))
+                    columns.append(u * (dt / s.alpha[0]))
+                    rows.append(w)
+        update = LowRank(np.stack(columns, axis=1), np.stack(rows, axis=1)) if columns else None
+        return sp.csr_matrix(J), update
 
     def response(self, loads: sp.spmatrix, dt: float | None = None) -> np.ndarray:
         """The change of V̄ that each column of ``loads`` (wall numbering) makes as a force F̄ of a step of Δt.
@@ -309,19 +358,69 @@ def step_force(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray
     """
     if forms.linear or scheme.beta[0] == 1.0:
         return forms.force(scheme.average(ds))
-    if tuple(scheme.beta) != (0.5, 0.5):
+    if not midpoint(scheme):
         raise ValueError(f"{scheme.name} has no energy-consistent internal force for a nonlinear layer: its "
                          f"operator is evaluated at Σβ_k d^(n+1−k) with β = {scheme.beta}")
-    d1, d0 = ds[0], ds[1]
+    return discrete_gradient(forms, ds[0], ds[1]).force
+
+
+def midpoint(scheme: TimeScheme) -> bool:
+    """Whether ``scheme`` evaluates its operator at the midpoint of two levels (β = (½, ½): Crank–Nicolson), where a
+    nonlinear layer's force is the discrete gradient."""
+    return tuple(scheme.beta) == (0.5, 0.5)
+
+
+def layer_dofs(forms: LayerMatrices) -> np.ndarray:
+    """The DOFs (a boolean mask) a layer's mass or stiffness touches: where its discrete gradient's Δd is its own."""
+    return (sp.csr_matrix(forms.mass).getnnz(axis=1) + sp.csr_matrix(forms.stiffness).getnnz(axis=1)) > 0
+
+
+@attrs.frozen(eq=False)
+class DiscreteGradient:
+    """A layer's discrete gradient from d⁰ to d¹ (:func:`discrete_gradient`) and what its derivative needs."""
+
+    midpoint: np.ndarray  #: ∇W(d_mid)
+    delta: np.ndarray  #: Δd = d¹ − d⁰
+    own: np.ndarray  #: Δd on the layer's DOFs
+    norm2: float  #: |own|²
+    coefficient: float  #: [W(d¹) − W(d⁰) − ∇W(d_mid)·Δd]/|own|², 0 where that is round-off
+    before: float  #: W(d⁰)
+
+    @property
+    def force(self) -> np.ndarray:
+        """f̄ = ∇W(d_mid) + coefficient · own."""
+        return self.midpoint + self.coefficient * self.own if self.coefficient else self.midpoint
+
+
+def discrete_gradient(forms: LayerMatrices, d1: np.ndarray, d0: np.ndarray, dofs: np.ndarray | None = None,
+                      before: float | None = None) -> DiscreteGradient:
+    """Gonzalez's discrete gradient of a layer's W from ``d0`` to ``d1`` (:func:`step_force`); ``dofs`` the layer's
+    (:func:`layer_dofs`, found here when not given), ``before`` W(d0) when known."""
     f = forms.force(0.5 * (d0 + d1))
     delta = d1 - d0
-    w1, w0, work = forms.elastic(d1), forms.elastic(d0), float(f @ delta)
-    own = np.where(sp.csr_matrix(forms.mass).getnnz(axis=1) + sp.csr_matrix(forms.stiffness).getnnz(axis=1) > 0,
-                   delta, 0.0)
+    w1 = forms.elastic(d1)
+    w0 = forms.elastic(d0) if before is None else before
+    work = float(f @ delta)
+    own = np.where(layer_dofs(forms) if dofs is None else dofs, delta, 0.0)
     jump, norm2 = w1 - w0 - work, float(own @ own)
-    if norm2 == 0.0 or abs(jump) <= GRADIENT_ROUND_OFF * (abs(w1) + abs(w0) + abs(work)):
-        return f
-    return f + (jump / norm2) * own
+    coefficient = 0.0
+    if norm2 != 0.0 and abs(jump) > GRADIENT_ROUND_OFF * (abs(w1) + abs(w0) + abs(work)):
+        coefficient = jump / norm2
+    return DiscreteGradient(f, delta, own, norm2, coefficient, w0)
+
+
+def gradient_derivative(forms: LayerMatrices, gradient: DiscreteGradient, K: sp.spmatrix, d1: np.ndarray,
+                        dofs: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """∂f̄/∂d¹ − ½K_T(d_mid) of a discrete gradient with a correction c = ``gradient.coefficient`` ≠ 0: a diagonal
+    c·P (P the layer's DOFs) and a rank-one term own ⊗ ∇c, returned as (the diagonal, (own, ∇c)).
+
+    With f̄ = f(m) + c·PΔ, c = j/|PΔ|², j = W(d¹) − W(d⁰) − f(m)·Δ and m = (d⁰ + d¹)/2:
+    ∇c = [f(d¹) − f(m) − ½K_T(m)Δ − 2c·PΔ]/|PΔ|² (``K`` is K_T(m)).  The rank-one term is dense: it stays out of
+    the sparse tangent (:meth:`StructureStep.jacobian`).
+    """
+    c, own = gradient.coefficient, gradient.own
+    grad = (forms.force(d1) - gradient.midpoint - 0.5 * (K @ gradient.delta) - 2.0 * c * own) / gradient.norm2
+    return c * dofs.astype(float), (own, grad)
 
 
 def elastic_remainder(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray]) -> float:
@@ -359,4 +458,5 @@ def wall_energy(stack: Stack, scheme: TimeScheme, state: State, fluid_line: int 
     return out
 
 
-__all__ = ["StructureStep", "WallStep", "elastic_remainder", "own_velocity", "step_force", "wall_energy"]
+__all__ = ["DiscreteGradient", "StructureStep", "WallStep", "discrete_gradient", "elastic_remainder", "gradient_derivative",
+           "layer_dofs", "midpoint", "own_velocity", "step_force", "wall_energy"]

@@ -305,6 +305,55 @@ def factorization_cost(n: int) -> float:
     return 14.0 * max(1.0, n / 70_000) ** 0.5
 
 
+@attrs.frozen(eq=False)
+class LowRank:
+    """A low-rank term U Wᵀ (U, W of shape n × k, k small) added to a sparse matrix: the exact Jacobian of a
+    force whose derivative has a dense rank-k part (Crank–Nicolson's discrete gradient,
+    :func:`multilayer.coupling.structure.step_force`).
+
+    >>> A = sp.diags([2.0, 4.0]).tocsc()
+    >>> update = LowRank(np.array([[1.0], [1.0]]), np.array([[1.0], [0.0]]))
+    >>> x = update.solver(factorize(A, SolverStats()).solve)(np.array([3.0, 5.0]))
+    >>> bool(np.allclose(update.on(A) @ x, [3.0, 5.0]))
+    True
+    """
+
+    U: np.ndarray
+    W: np.ndarray
+
+    def on(self, A: sp.spmatrix) -> Updated:
+        """A + U Wᵀ as an operator (products only)."""
+        return Updated(A, self)
+
+    def solver(self, solve: Callable[[np.ndarray], np.ndarray]) -> Callable[[np.ndarray], np.ndarray]:
+        """b ↦ (A + U Wᵀ)⁻¹ b from ``solve`` = A⁻¹ (Woodbury: A⁻¹b − A⁻¹U (I + Wᵀ A⁻¹U)⁻¹ Wᵀ A⁻¹b), A⁻¹U
+        solved once."""
+        AU = solve(self.U)
+        AU = AU.reshape(self.U.shape)
+        capacitance = np.eye(self.U.shape[1]) + self.W.T @ AU
+
+        def updated(b: np.ndarray) -> np.ndarray:
+            y = solve(b)
+            return y - AU @ np.linalg.solve(capacitance, self.W.T @ y)
+
+        return updated
+
+
+@attrs.frozen(eq=False)
+class Updated:
+    """A sparse matrix plus a :class:`LowRank` term, as far as GMRES and a residual use it: ``@`` and ``shape``."""
+
+    A: sp.spmatrix
+    update: LowRank
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.A.shape
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        return self.A @ x + self.update.U @ (self.update.W.T @ x)
+
+
 class ReusingSolver:
     """Solves A x = b for a sequence of matrices of one size, refactorizing only when needed.
 
@@ -442,11 +491,15 @@ class ReusingSolver:
         """True when the held factorization is of the matrix ``key`` stands for (compared by identity)."""
         return self._factors is not None and self._matrix is key
 
-    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None) -> np.ndarray:
+    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None, update: LowRank | None = None) -> np.ndarray:
         """x with A x = b: directly when the factors are A's, else by GMRES on the held ones or a fresh LU.
 
         ``key`` stands for A when A is rebuilt from data that did not change
         (e.g. the token of the system it is a block of); by default A itself.
+        With ``update`` the system is (A + U Wᵀ) x = b: the factors are always
+        of the sparse A, GMRES takes the whole operator, and a direct solve
+        with A's own factors adds the update by Woodbury's formula
+        (:class:`LowRank`), so a dense low-rank term never enters a factorization.
         """
         key = A if key is None else key
         if self.stats.resume is not None:  # a resumed run: the held state of the checkpoint first
@@ -454,13 +507,14 @@ class ReusingSolver:
             self.restore(held)
         again = self.repeats(A, key)
         self._last_key, self.last = key, A
+        operator = A if update is None else update.on(A)
         if self.holds(key):
-            return self._refined(A, b)
+            return self._refined(operator, b, update)
         x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
         if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
                 and not self._stale()):
-            result = self._gmres(A, b, guess=True)
+            result = self._gmres(operator, b, guess=True)
             x = result.x
             if x is not None:
                 self._weigh(result, b)
@@ -468,7 +522,7 @@ class ReusingSolver:
                 self._excess = math.inf
         if x is None:
             self.factorize(A, key)
-            x = self._refined(A, b)
+            x = self._refined(operator, b, update)
         if not again:
             self._span.add(x)
         return x
@@ -513,7 +567,7 @@ class ReusingSolver:
         self._single = False
         self.stats.fallbacks += 1
 
-    def _refined(self, A: sp.spmatrix, b: np.ndarray) -> np.ndarray:
+    def _refined(self, A, b: np.ndarray, update: LowRank | None = None) -> np.ndarray:
         """The held factors' solution of A x = b, to ‖b − A x‖ ≤ tolerance ‖b‖.
 
         Double-precision factors: a direct solve, with iterative refinement
@@ -521,7 +575,8 @@ class ReusingSolver:
         threshold pivoting — the SuperLU backend keeps small diagonal pivots —
         may leave one); each sweep costs one product and one
         back-substitution, and is counted in ``refinements``; at most
-        ``REFINEMENTS`` sweeps.  Single-precision factors: GMRES on them
+        ``REFINEMENTS`` sweeps.  With a low-rank ``update`` (``A`` its operator) each solve adds it
+        by Woodbury's formula.  Single-precision factors: GMRES on them
         (counted as a Krylov solve); where it does not converge within
         ``max_iterations`` the matrix is factorized in double precision, and
         the solver stays double for the rest of the run (a ``fallback``).
@@ -531,13 +586,14 @@ class ReusingSolver:
             if x is not None:
                 return x
             self._fall_back()
-            self.factorize(A, self._matrix)
-        x = self._factors.solve(b)
+            self.factorize(A if update is None else A.A, self._matrix)
+        solve = self._factors.solve if update is None else update.solver(self._factors.solve)
+        x = solve(b)
         target = self.reuse.tolerance * np.linalg.norm(b)
         for _ in range(self.REFINEMENTS):
             r = b - A @ x
             if not np.linalg.norm(r) > target:
                 break
-            x = x + self._factors.solve(r)
+            x = x + solve(r)
             self.stats.refinements += 1
         return x

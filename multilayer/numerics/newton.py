@@ -40,6 +40,10 @@ import numpy as np
 TOLERANCE = 1e-11
 #: corrections allowed before the solve is given up
 MAX_ITERATIONS = 25
+#: halvings of a correction that does not lower the residual (:func:`_line_search`), and the share of λ‖R‖ a
+#: cut-back step must take off ‖R‖ (Armijo's condition on ‖R‖)
+HALVINGS = 10
+SUFFICIENT = 1e-4
 
 Residual = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 Solve = Callable[[np.ndarray | None, np.ndarray], np.ndarray]
@@ -66,10 +70,37 @@ def relative(r: np.ndarray, size: np.ndarray) -> float:
     return norm / scale if scale > 0.0 else norm
 
 
+def _line_search(residual: Residual, x: np.ndarray, delta: np.ndarray, r: np.ndarray,
+                 current: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """x + λΔ, its residual, size and relative residual h: λ = 1 where that lowers h or ‖R‖, else halved until
+    ‖R‖ falls by at least ``SUFFICIENT`` λ of itself (at most ``HALVINGS`` times; the last finite trial if none
+    does).
+
+    Δ = J⁻¹R is a direction in which ‖R‖ falls (its derivative along Δ is −‖R‖ for the exact J), so a short
+    enough step lowers it: a correction that overshoots — a large step of a stiffening wall, fibres passing
+    from taut to slack, a trial state past J = 0 where the residual is nan — is cut back instead of throwing
+    the iteration out of the basin where it converges quadratically.  Near the solution the full step
+    lowers both quadratically, and it is the one taken.
+    """
+    norm = float(np.linalg.norm(r))
+    step, last = 1.0, None
+    for _ in range(HALVINGS + 1):
+        trial = x + step * delta
+        r_trial, size = residual(trial)
+        h = relative(r_trial, size)
+        if np.isfinite(h):
+            last = (trial, r_trial, size, h)
+            norm_trial = float(np.linalg.norm(r_trial))
+            if norm_trial <= (1.0 - SUFFICIENT * step) * norm:
+                return last
+        step *= 0.5
+    return (trial, r_trial, size, h) if last is None else last  # (not finite: the loop reports it)
+
+
 def newton(residual: Residual | None, solve: Solve, start: np.ndarray | None, linear: bool = False,
            first: np.ndarray | None = None, stats=None, tolerance: float = TOLERANCE,
            max_iterations: int = MAX_ITERATIONS, what: str = "the wall") -> NewtonResult:
-    """x with R(x) = 0 by Newton's corrections x ← x + J(x)⁻¹R(x).
+    """x with R(x) = 0 by Newton's corrections x ← x + λJ(x)⁻¹R(x), λ = 1 unless that raises the residual (:func:`_line_search`).
 
     Parameters
     ----------
@@ -107,10 +138,9 @@ def newton(residual: Residual | None, solve: Solve, start: np.ndarray | None, li
             raise NewtonError(f"{what}: Newton's iteration did not converge in {iterations} corrections (relative "
                               f"residuals {seen}; tolerance {tolerance:g}): a smaller Δt, or a layer whose tangent "
                               "is not the derivative of its force (multilayer check-plugin checks it)")
-        x = x + solve(x, r)
+        x, r, size, h = _line_search(residual, x, solve(x, r), r, history[-1])
         iterations += 1
-        r, size = residual(x)
-        history.append(relative(r, size))
+        history.append(h)
     if stats is not None:
         stats.newton_solves += 1
         stats.newton_iterations += iterations
