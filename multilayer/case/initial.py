@@ -72,6 +72,11 @@ R + η ≤ 0 closes the channel; the initial radial displacement must keep R + �
     return []
 
 
+def _zeros(table: Any) -> bool:
+    """Whether an ``initial`` table's every component is the expression ``"0"`` (or the number 0)."""
+    return isinstance(table, dict) and all(str(v).strip() in ("0", "0.0") for v in table.values())
+
+
 def equilibrium_problems(pressure: float | None, initial: Any) -> list[Problem]:
     """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.wall.equilibrium`) given together
     with the ``initial`` table's ``displacement`` or ``velocity``: the wall would be given twice.
@@ -81,8 +86,12 @@ def equilibrium_problems(pressure: float | None, initial: Any) -> list[Problem]:
 leave initial.displacement out
     >>> equilibrium_problems(None, {"displacement": {"r": "0.01"}}), equilibrium_problems(2000.0, {})
     ([], [])
+    >>> equilibrium_problems(2000.0, {"displacement": {"r": "0", "z": "0"}})  # a resolved case's defaults
+    []
     """
-    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity") if name in initial)
+    # a table of zeros is the default a resolved case spells out (a checkpoint's, resumed): no second wall
+    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity")
+                         if name in initial and not _zeros(initial[name]))
     if pressure is None or not given:
         return []
     return [Problem("initial.pressure", pressure, f"sets the initial wall (its static equilibrium), and {given} too",

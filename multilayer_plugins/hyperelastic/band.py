@@ -42,13 +42,21 @@ class HyperelasticForms(NonlinearForms):
     kinematics: BandKinematics
     law: Isochoric
     volumetric: Volumetric
+    #: the last displacement's state (:meth:`_state`): a Newton correction's residual, its terms' size and the
+    #: tangent evaluate it at one d
+    _last: dict = attrs.field(factory=dict, init=False, repr=False)
 
     def _state(self, d: np.ndarray) -> tuple[Strain, np.ndarray, np.ndarray]:
-        """The strain at the points, each group's J̄ − 1, and the groups' volumes V."""
+        """The strain at the points, each group's J̄ − 1, and the groups' volumes V (the last d's kept)."""
+        last = self._last.get("state")
+        if last is not None and np.array_equal(last[0], d):
+            return last[1]
         kin = self.kinematics
         strain = Strain.of(kin.gradient(d), self.law.beta)
         V = np.asarray(kin.groups.sum(axis=1)).ravel()
-        return strain, (kin.groups @ strain.J1.ravel()) / V, V
+        state = strain, (kin.groups @ strain.J1.ravel()) / V, V
+        self._last["state"] = (np.array(d, copy=True), state)
+        return state
 
     def _pressure(self, Jbar1: np.ndarray) -> np.ndarray:
         """m_q = Σ_g S_gq U'(J̄_g): each point's weighted share of the groups' pressures."""
