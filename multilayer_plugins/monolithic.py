@@ -119,9 +119,14 @@ class Monolithic(ThickLumen, Coupler):
             x[fixed_f] = values_f
             fixed = np.concatenate([fixed_f, glob[stack.fixed]])
 
+            last: dict = {}  # the latest matrix and the unknowns it is at: the start's is the first correction's
+
             def matrix(free_x):
                 """The system's matrix with the wall's tangent at ``free_x`` (its constant matrix when linear), and
                 the low-rank part of that tangent on the free unknowns (None when it has none)."""
+                at = unknowns(free_x) if held["layout"] is not None else None
+                if at is not None and "at" in last and np.array_equal(last["at"], at):
+                    return last["out"]
                 A_wall, update = held["wall"], None
                 if not stack.linear:
                     A_wall, update = structure.jacobian(history, unknowns(free_x)[glob], dt)
@@ -133,7 +138,9 @@ class Monolithic(ThickLumen, Coupler):
                     U, W = np.zeros((n, update.U.shape[1])), np.zeros((n, update.U.shape[1]))
                     U[glob], W[glob] = update.U, update.W
                     update = LowRank(U[layout.free], W[layout.free])
-                return layout, layout.fill(A_f.data, A_wall.data), update
+                out = layout, layout.fill(A_f.data, A_wall.data), update
+                last["at"], last["out"] = unknowns(free_x), out
+                return out
 
             def unknowns(free_x):
                 """The system's unknowns: the fixed values, and ``free_x`` on the free ones (None: zero)."""

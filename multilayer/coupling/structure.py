@@ -245,21 +245,41 @@ class StructureStep:
         ds = self.levels(states, mean, dt)
         dbar = s.average(ds)
         gain = s.displacement_gain(dt)
-        J = st.mass * (s.inertia / dt)
+        J = self._constant_part(dt)
         columns, rows = [], []
+        diagonal = None
         for i, m in enumerate(st.matrices):
+            if m.linear:
+                continue
             K = m.tangent(dbar)
-            J = J + m.damping_tangent(mean) + K * gain
-            if not m.linear and midpoint(s):
+            C = m.damping_tangent(mean)
+            J = J + K * gain if C.nnz == 0 else J + C + K * gain
+            if midpoint(s):
                 gradient = self._gradient(i, m, ds)
                 if gradient.coefficient:
                     # d^{n+1} = (Δt V̄ − Σ_{k≥1} α_k d^{n+1−k})/α₀: its derivative in V̄ is Δt/α₀
-                    diagonal, (u, w) = gradient_derivative(m, gradient, K, ds[0], self._layer_dofs(i, m))
-                    J = J + sp.diags(diagonal * (dt / s.alpha[0]))
+                    diag, (u, w) = gradient_derivative(m, gradient, K, ds[0], self._layer_dofs(i, m))
+                    diagonal = diag if diagonal is None else diagonal + diag
                     columns.append(u * (dt / s.alpha[0]))
                     rows.append(w)
+        if diagonal is not None:
+            J = J + sp.diags(diagonal * (dt / s.alpha[0]))
         update = LowRank(np.stack(columns, axis=1), np.stack(rows, axis=1)) if columns else None
         return sp.csr_matrix(J), update
+
+    def _constant_part(self, dt: float) -> sp.csr_matrix:
+        """(α₀/β₀) M/Δt + Σ_linear (C_i + (β₀Δt/α₀) K_i): the part of :meth:`jacobian` that depends on Δt only,
+        kept for the last :meth:`matrix_key`."""
+        key = ("constant", self.matrix_key(dt))
+        held = self._shared.get("constant")
+        if held is None or held[0] != key:
+            st, s = self.stack, self.scheme
+            J = st.mass * (s.inertia / dt)
+            for m in st.matrices:
+                if m.linear:
+                    J = J + m.damping + m.stiffness * s.displacement_gain(dt)
+            held = self._shared["constant"] = (key, sp.csr_matrix(J))
+        return held[1]
 
     def response(self, loads: sp.spmatrix, dt: float | None = None) -> np.ndarray:
         """The change of V̄ that each column of ``loads`` (wall numbering) makes as a force F̄ of a step of Δt.
@@ -310,7 +330,10 @@ class StructureStep:
             stored[f"kinetic.{_label(i)}"] = s.stored(m.kinetic, vs)
             stored[f"elastic.{_label(i)}"] = s.stored(m.elastic, ds)
             dissipation[f"dissipation.viscous.{_label(i)}"] = m.dissipation(mean, dt)
-            elastic = s.numerical(m.elastic, ds) if m.linear else elastic_remainder(s, m, ds)
+            if m.linear:
+                elastic = s.numerical(m.elastic, ds)
+            else:  # (Crank–Nicolson: the discrete gradient the last residual evaluated at this V̄, kept)
+                elastic = elastic_remainder(s, m, ds, self._gradient(i, m, ds).force if midpoint(s) else None)
             numerical += s.numerical(m.kinetic, vs) + elastic
         dissipation["dissipation.numerical.wall"] = numerical
         work = {f"work.{name}": dt * float(mean @ f) for name, f in forces.items()}
@@ -423,7 +446,8 @@ def gradient_derivative(forms: LayerMatrices, gradient: DiscreteGradient, K: sp.
     return c * dofs.astype(float), (own, grad)
 
 
-def elastic_remainder(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray]) -> float:
+def elastic_remainder(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.ndarray],
+                      force: np.ndarray | None = None) -> float:
     """The numerical dissipation of a layer's elastic energy in a step: Σα_k d^{n+1−k}·f̂ − stored + before.
 
     The work of the force the step applied (:func:`step_force`) less the
@@ -432,7 +456,7 @@ def elastic_remainder(scheme: TimeScheme, forms: LayerMatrices, ds: Sequence[np.
     discrete gradient zero to round-off.  BDF2's G-norm is an identity only
     for a quadratic W: with another the term may take either sign.
     """
-    work = float(scheme.difference(ds) @ step_force(scheme, forms, ds))
+    work = float(scheme.difference(ds) @ (step_force(scheme, forms, ds) if force is None else force))
     return work - scheme.stored(forms.elastic, ds) + scheme.before(forms.elastic, ds)
 
 

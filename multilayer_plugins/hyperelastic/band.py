@@ -42,20 +42,22 @@ class HyperelasticForms(NonlinearForms):
     kinematics: BandKinematics
     law: Isochoric
     volumetric: Volumetric
-    #: the last displacement's state (:meth:`_state`): a Newton correction's residual, its terms' size and the
-    #: tangent evaluate it at one d
+    #: the last displacements' states and stress (:meth:`_state`, :meth:`_stress`): a Newton correction's residual,
+    #: its terms' size and the tangent evaluate them at the same few d
     _last: dict = attrs.field(factory=dict, init=False, repr=False)
 
     def _state(self, d: np.ndarray) -> tuple[Strain, np.ndarray, np.ndarray]:
-        """The strain at the points, each group's J̄ − 1, and the groups' volumes V (the last d's kept)."""
-        last = self._last.get("state")
-        if last is not None and np.array_equal(last[0], d):
-            return last[1]
+        """The strain at the points, each group's J̄ − 1, and the groups' volumes V (the last three d's kept)."""
+        kept = self._last.setdefault("states", [])
+        for at, state in kept:
+            if np.array_equal(at, d):
+                return state
         kin = self.kinematics
         strain = Strain.of(kin.gradient(d), self.law.beta)
         V = np.asarray(kin.groups.sum(axis=1)).ravel()
         state = strain, (kin.groups @ strain.J1.ravel()) / V, V
-        self._last["state"] = (np.array(d, copy=True), state)
+        kept.insert(0, (np.array(d, copy=True), state))
+        del kept[3:]  # a Crank–Nicolson correction's three: d^{n+1}, the midpoint, dⁿ
         return state
 
     def _pressure(self, Jbar1: np.ndarray) -> np.ndarray:
@@ -70,9 +72,15 @@ class HyperelasticForms(NonlinearForms):
         return float(np.sum(self.kinematics.weights * self.law.energy(strain)) + V @ U)
 
     def _stress(self, d: np.ndarray) -> np.ndarray:
-        """The weighted first derivatives of W at the points: w_q P_iso + m_q ∂J/∂F (5, E, Q)."""
+        """The weighted first derivatives of W at the points: w_q P_iso + m_q ∂J/∂F (5, E, Q) (the last d's kept:
+        the force and its size are taken at one d)."""
+        last = self._last.get("stress")
+        if last is not None and np.array_equal(last[0], d):
+            return last[1]
         strain, Jbar1, _ = self._state(d)
-        return self.kinematics.weights * self.law.stress(strain) + self._pressure(Jbar1) * strain.cofactor
+        stress = self.kinematics.weights * self.law.stress(strain) + self._pressure(Jbar1) * strain.cofactor
+        self._last["stress"] = (np.array(d, copy=True), stress)
+        return stress
 
     def force(self, d: np.ndarray) -> np.ndarray:
         """∇W(d)."""
