@@ -390,8 +390,8 @@ def test_a_resumed_run_with_hyperelastic_bands_is_bit_identical(tmp_path, couple
                                      '{model="monolithic",scheme="crank-nicolson"}'],
                          ids=("kinematic-splitting-inertia", "monolithic-crank-nicolson"))
 def test_the_light_wall_hard_case_is_stable_with_a_hyperelastic_wall(tmp_path, coupler):
-    """tests/test_coupled.py's lightest wall (ρ₁h/(ρ_f R) = 0.001, 2000 steps) as an HGO membrane of its stiffness
-    (c = E/3 of the incompressible shell, fibres at 40°), from its static start at 10⁴ dyn/cm² under a pulse on it:
+    """tests/test_coupled.py's lightest wall (ρ₁h/(ρ_f R) = 0.001; 500 steps, the pulse's 3 ms and 47 ms after it)
+    as an HGO membrane of its stiffness (c = E/3 of the incompressible shell, fibres at 40°), from its static start at 10⁴ dyn/cm² under a pulse on it:
     E ≤ E⁰ + work every step, and the ledger closes.  (From rest the membrane's strains are ~1e-6, where its
     law's round-off, 1e-16 of c against a tension of c·ε, leaves Newton's residual at ~1e-10, above the loop's
     1e-11: the run stops in its first steps.)"""
@@ -399,11 +399,11 @@ def test_the_light_wall_hard_case_is_stable_with_a_hyperelastic_wall(tmp_path, c
         "pulse-koiter", tmp_path / "light",
         'layers[0]={ model = "hgo-membrane", density = 1.0, thickness = 0.0005, c = 2.5e7, k1 = 2.5e7, k2 = 0.8, '
         'angle = 40.0 }',
-        "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.2", "time.dt=1e-4",
+        "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.05", "time.dt=1e-4",
         "output.probes=[{ name = \"eta_z1\", quantity = \"eta\", z = 1.0 }]", f"coupler={coupler}",
         "solver.volume_margin=2", "initial.pressure=1e4", "loads.outlet=1e4",
         "loads.inlet=\"1e4 + 6.6665e3*(1 - cos(2*pi*t/3e-3))\"")
-    assert code == 0 and summary["status"] == "ok" and summary["steps"] == 2000
+    assert code == 0 and summary["status"] == "ok" and summary["steps"] == 500
     s = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
     work = sum(s[k] for k in s if k.startswith("work."))
     dissipation = sum(s[k] for k in s if k.startswith("dissipation."))
