@@ -56,7 +56,7 @@ def test_adaptive_steps_close_the_ledger_and_report_their_steps(tmp_path, couple
     assert code == 0 and summary["status"] == "ok", summary["reason"]
     assert summary["energy"]["max_relative_residual"] < 1e-9
     adaptive = summary["adaptive"]
-    assert adaptive["control"] == "per-step"  # the default
+    assert adaptive["control"] == "per-step" and adaptive["size"] == "so-far"  # the defaults
     assert adaptive["accepted"] == summary["steps"] == len(rows)
     dts = np.array([float(r["dt"]) for r in rows])
     t = np.array([float(r["t"]) for r in rows])
@@ -176,6 +176,23 @@ def test_the_error_per_unit_time_is_measured_over_the_memory_time():
     x, before = np.array([1.0, -3.0]), np.array([1.0, -2.0])
     assert clock.size(x, before, 0.1, 0.01) == 10.0  # t < W: t |Δx|/Δt
     assert clock.size(x, before, 2.0, 0.01) == 25.0  # t > W: W |Δx|/Δt
+
+
+def test_a_fields_size_over_the_memory_time_counts_its_rate_over_w_and_forgets_its_peak():
+    """time.size = "memory": the rate term is W |Δx|/Δt from the first step (the first period measured as the
+    later ones), and the peak decays by exp(−Δt/W) a step, as N_W forgets its steps; "so-far" keeps the peak."""
+    time = TimeSpec(end=3.0, dt=1e-3, tolerance=1e-2)
+    x, before = np.array([1.0, -3.0]), np.array([1.0, -2.0])
+    so_far, memory = clock_for(time, SinePressure(1.0, 4.0)), clock_for(attrs.evolve(time, size="memory"),
+                                                                       SinePressure(1.0, 4.0))
+    assert so_far.size(x, before, 0.1, 0.01) == pytest.approx(10.0)  # t < W = 0.25: t |Δx|/Δt
+    assert memory.size(x, before, 0.1, 0.01) == pytest.approx(25.0)  # W |Δx|/Δt
+    assert memory.size(x, before, 2.0, 0.01) == so_far.size(x, before, 2.0, 0.01) == pytest.approx(25.0)
+    assert so_far.forgetting(0.05) == 1.0 and memory.forgetting(0.05) == pytest.approx(np.exp(-0.2))
+    peak = 1.0
+    for _ in range(50):  # one W of steps of W/50: the peak falls to 1/e
+        peak *= memory.forgetting(0.005)
+    assert peak == pytest.approx(np.exp(-1.0), rel=1e-12)
 
 
 def test_steps_land_on_a_tables_rows_and_a_pulses_end():

@@ -1,4 +1,4 @@
-"""Adaptive keys of ``[time]`` (tolerance, dt_min, dt_max, output_interval, memory, control): read, bounded,
+"""Adaptive keys of ``[time]`` (tolerance, dt_min, dt_max, output_interval, memory, control, size): read, bounded,
 refused with key paths."""
 
 import pytest
@@ -31,6 +31,8 @@ def problems(*sets: str) -> list[str]:
     (("time.tolerance=1e-3", "time.output_interval=1e-300"), "time.output_interval", "at least the smallest step"),
     (("time.tolerance=1e-3", 'time.control="per_step"'), "time.control", "per-step"),
     (('time.control="per-step"',), "time.control", "read only with adaptive steps"),
+    (("time.tolerance=1e-3", 'time.size="period"'), "time.size", "so-far"),
+    (('time.size="memory"',), "time.size", "read only with adaptive steps"),
 ])
 def test_bad_adaptive_time_keys_are_refused_with_their_key_path(sets, path, words):
     found = problems(CN_SPLIT, *sets)

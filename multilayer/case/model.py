@@ -47,6 +47,7 @@ class TimeSpec:
     output_interval: float | None = None  #: adaptive steps land on its multiples (s)
     memory: float | None = None  #: adaptive steps: the memory time W (s; None: the loads' shortest period, or end)
     control: str | None = None  #: adaptive steps: "per-step" (None) or "per-unit-step" (multilayer.coupling.clock)
+    size: str | None = None  #: adaptive steps: a field's size "so-far" (None) or over the last "memory" time
 
     @property
     def adaptive(self) -> bool:
@@ -57,6 +58,11 @@ class TimeSpec:
     def sharing(self) -> str:
         """How an adaptive run shares its tolerance among its steps: ``control``, by default "per-step"."""
         return self.control or "per-step"
+
+    @property
+    def sizing(self) -> str:
+        """What an adaptive run measures a field's error against: ``size``, by default "so-far"."""
+        return self.size or "so-far"
 
     @property
     def smallest(self) -> float:

@@ -33,12 +33,14 @@ MESH = (
 )
 #: how an adaptive run shares its tolerance among its steps (multilayer.coupling.clock)
 CONTROLS = ("per-step", "per-unit-step")
+#: what an adaptive run measures a field's error against: its size so far, or its size over the last memory time
+SIZES = ("so-far", "memory")
 TIME = (
     Param("end", "T", "s", gt=0.0, doc="final time"),
     Param("dt", "Δt", "s", gt=0.0, doc="time step (with tolerance: the first step)"),
     Param("tolerance", default=None, gt=0.0, lt=1.0,
           doc="adaptive steps: the relative error the run may accumulate in the wall's displacement and velocity "
-              "and the fluid's velocity (each in the max norm over its DOFs, relative to its peak so far); "
+              "and the fluid's velocity (each in the max norm over its DOFs, relative to its size: time.size); "
               "unset: every step is dt"),
     Param("dt_min", "", "s", default=None, gt=0.0,
           doc="adaptive steps: the smallest step; a step the error would make smaller stops the run"),
@@ -52,9 +54,13 @@ TIME = (
           doc="adaptive steps: how the tolerance is shared among the steps: 'per-step' (every step of the span W the "
               "same local error: the fewest steps for an error that adds up; unset) or 'per-unit-step' (a step's "
               "local error in proportion to its length)"),
+    Param("size", type=str, default=None, choices=SIZES,
+          doc="adaptive steps: the size a field's error is relative to: 'so-far' (its peak so far, its rate "
+              "counted over min(t, W); unset) or 'memory' (its size over the last span W: its rate counted over W "
+              "from the first step, its peak forgotten at the rate 1/W)"),
 )
 #: the keys of [time] that only adaptive steps (time.tolerance) read
-ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory", "control")
+ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory", "control", "size")
 
 
 #: radial cells of a thick layer: a core key, not a plugin parameter (its upper bound: the memory check)

@@ -14,7 +14,9 @@ Adaptive steps (:class:`Adaptive`, derivation in docs/theory.md, "Adaptive steps
   :meth:`~multilayer.numerics.timescheme.TimeScheme.carried`) of
   the wall displacement d and of the fluid velocity's time integral X
   (:func:`fields`: the velocities through their integrals), each in the max
-  norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`);
+  norm over its DOFs relative to that field's size so far (:meth:`Adaptive.size`), or with
+  ``time.size = "memory"`` over the last memory time W (its rate counted over W from the first
+  step, its peak forgotten at the rate 1/W: :meth:`Adaptive.forgetting`);
   the largest of them is the step's relative error e.  A coupler whose error
   the predictor does not see puts its own estimate of a field in the new
   state's ``extra["estimate.<field>"]`` (used instead), and an error that
@@ -215,6 +217,8 @@ class Adaptive:
         self.loads = setup.case.loads.histories()
         self.memory = time.memory_time(self.loads)
         self.per_step = time.sharing == "per-step"
+        #: a field's size over the last memory time (``time.size = "memory"``) rather than so far
+        self.over_memory = time.sizing == "memory"
         self.controller = Controller(scheme.order + 1, hold=True) if self.per_step else Controller(scheme.order)
         #: per step, an error that only bounds the next step (the splitting's defect, O(kₙ²) a step) has an err
         #: that goes as kₙ: a PI controller of its own, q = 1, settles it at 0.70 instead of q = 3's 0.35
@@ -305,14 +309,23 @@ class Adaptive:
         return self.controller.kept(factor, held)
 
     def size(self, x: np.ndarray, before: np.ndarray, t: float, dt: float) -> float:
-        """A field's size at time t: max(|x|, min(t, W) |x − x_before|/Δt) in the max norm.
+        """A field's size at time t: max(|x|, min(t, W) |x − x_before|/Δt) in the max norm (W |x − x_before|/Δt
+        with ``time.size = "memory"``).
 
         The second term is how far the field's rate over the step moves it in the
         time elapsed, or in the memory time W once more has elapsed: early in a run,
         a small fast transient is measured against it, not against the field's
-        still tiny value.
+        still tiny value.  Over the memory time from the first step ("memory"): on a
+        periodic run the first period is measured as the later ones are.
         """
-        return max(float(np.max(np.abs(x))), min(t, self.memory) * float(np.max(np.abs(x - before))) / dt)
+        span = self.memory if self.over_memory else min(t, self.memory)
+        return max(float(np.max(np.abs(x))), span * float(np.max(np.abs(x - before))) / dt)
+
+    def forgetting(self, dt: float) -> float:
+        """What is left of a field's peak size after a step of ``dt``: 1 (the peak so far), or exp(−Δt/W) with
+        ``time.size = "memory"`` (the size over the last W: a start's transient is forgotten as N_W forgets its
+        steps)."""
+        return math.exp(-dt / self.memory) if self.over_memory else 1.0
 
     def march(self, state: State, advance: Advance) -> Iterator[tuple[State, StepReport]]:
         """The accepted steps from ``state`` to ``time.end`` (module docstring)."""
@@ -361,7 +374,7 @@ class Adaptive:
                           largest=max(record["largest"], window.dt))
             old_fields = fields(state)
             for name, x in fields(new).items():
-                record[f"peak.{name}"] = max(record[f"peak.{name}"],
+                record[f"peak.{name}"] = max(record[f"peak.{name}"] * self.forgetting(window.dt),
                                              self.size(x, old_fields.get(name, 0.0 * x), new.t, window.dt))
             landed = float(new.t == self.output_time(state.t))
             state = attrs.evolve(new, extra={**new.extra, "clock": dict(record)})
@@ -438,7 +451,7 @@ def summary(record: dict[str, float] | None, case: Case) -> dict[str, object]:
     if time.tolerance is None or record is None:
         return {}
     return {"adaptive": {"tolerance": time.tolerance, "memory": time.memory_time(case.loads.histories()),
-                         "control": time.sharing,
+                         "control": time.sharing, "size": time.sizing,
                          "accepted": int(record["accepted"]),
                          "rejected": int(record["rejected"]),
                          "dt_range": [record["smallest"], record["largest"]],
