@@ -40,8 +40,19 @@ from pathlib import Path
 import numpy as np
 
 from multilayer.campaign.accuracy import cost_to_target, observed_orders
-from multilayer.campaign.run_tables import (centreline_changes, dt_cell, errors_against, markdown, peak_changes,
-                                            peaks, percent, scene_cells, scene_header, signed_percent, steps_taken)
+from multilayer.campaign.run_tables import (
+    centreline_changes,
+    dt_cell,
+    errors_against,
+    markdown,
+    peak_changes,
+    peaks,
+    percent,
+    scene_cells,
+    scene_header,
+    signed_percent,
+    steps_taken,
+)
 from multilayer.case.casefile import load_case
 from multilayer.results.reading import RunData, read_run
 
@@ -393,7 +404,7 @@ def orders_tables(study: Study, out: Path) -> list[str]:
         peak = max(e[1] for e in per_probe)
         wall = median_wall(out, study, run)
         groups.setdefault(run.group, []).append((dt, peak, linf, wall, [e[1] for e in per_probe]))
-        rows.append([run.group, f"{dt:g}", *(percent(e[1], 2) for e in per_probe), percent(linf, 3), ledger(data),
+        rows.append([run.group, f"{dt:g}", *(f"{100 * e[1]:.2f} %" for e in per_probe), percent(linf), ledger(data),
                      f"{wall:.3g}"])
     lines = markdown(["coupler", "Δt (s)", *(f"peak error {p}" for p in study.probes), "L∞ error", "ledger",
                       "median wall time (s)"], rows)
