@@ -123,6 +123,10 @@ def tolerance_runs(prefix: str, spec: str, text: str, tolerances: Sequence[str],
                      group=text) for tol in tolerances)
 
 
+#: the light wall of tests/test_adaptive.py's stability test: ρ₁h/(ρ_f R) = 1e-3 on a short coarse channel
+LIGHT_WALL = ('layers[0]={ model = "koiter-shell", density = 1.0, thickness = 0.0005, young = 7.5e7, poisson = 0.49 }',
+              "geometry.length=2.0", "mesh.nz=8", "mesh.nr=2", "time.end=0.02", "solver.volume_margin=2",
+              'output.probes=[{ name = "eta_z1", quantity = "eta", z = 1.0 }]')
 CAROTID_PROBES = ("eta_z1", "eta_z3", "eta_z5", "eta_z55", "p_out")
 TR_BDF2 = '{model="monolithic",scheme="tr-bdf2"}'
 
@@ -161,6 +165,31 @@ STUDIES: tuple[Study, ...] = (
               "a target error is the cheapest run that reaches it, else extrapolated from the finest run with the "
               "last observed order (\"estimated\")."),
     Study(
+        "couplers-koiter", "Every coupler's error and order in Δt: the Koiter shell alone",
+        "cases/pulse-koiter.toml", "orders", probes=("eta_z1", "eta_z2", "eta_z3"), repeat=3,
+        sets=("solver.volume_margin=2", "solver.energy_margin=0.05"),
+        reference=Run("reference", (MONOLITHIC_CN, "time.dt=3.125e-6"), text="monolithic CN, Δt = 3.125e-6"),
+        runs=dt_sweep(("1e-4", "5e-5", "2.5e-5")),
+        about="The same on `cases/pulse-koiter.toml`: a Koiter shell (h = 0.1 cm) alone, a heavier wall "
+              "against the fluid than the composite one's shell (ρ₁h/(ρ_f R) = 0.22); columns as above."),
+    Study(
+        "light-wall", "The lightest wall: every coupler at ρ₁h/(ρ_f R) = 1e-3", "cases/pulse-koiter.toml", "errors",
+        probes=("eta_z1",), sets=LIGHT_WALL,
+        reference=Run("reference", (MONOLITHIC_CN, "time.dt=2.5e-6"), text="monolithic CN, Δt = 2.5e-6"),
+        runs=tuple(Run(f"{label}-1e-4", (coupler(spec), "time.dt=1e-4"), text=f"{group}, Δt = 1e-4")
+                   for label, spec, group in (COUPLERS[0], COUPLERS[2], COUPLERS[3], COUPLERS[4], COUPLERS[5],
+                                              COUPLERS[6], COUPLERS[8]))
+        + (Run("paper-cn-beta1-2.5e-5", (coupler(COUPLERS[2][1]), "time.dt=2.5e-5"),
+               text=f"{COUPLERS[2][2]}, Δt = 2.5e-5"),
+           Run("monolithic-cn-tol1e-3", (MONOLITHIC_CN, "time.dt=1e-6", "time.tolerance=1e-3", "time.dt_max=1e-4"),
+               text="monolithic CN, tol 1e-3"),
+           Run("paper-cn-beta1-tol1e-2", (coupler(COUPLERS[2][1]), "time.dt=1e-6", "time.tolerance=1e-2",
+                                          "time.dt_max=1e-4"), text=f"{COUPLERS[2][2]}, tol 1e-2")),
+        about="The light-wall scene of the stability tests: `cases/pulse-koiter.toml` with a Koiter shell of "
+              "ρ₁ = 1, h = 5e-4 cm (ρ₁h/(ρ_f R) = 1e-3, 220× lighter against the fluid than the bundled shell), "
+              "a 2 cm channel on 8 × 2 cells, to 20 ms: each coupler's error at z = 1 cm against monolithic "
+              "Crank–Nicolson at Δt = 2.5e-6, and two adaptive runs (`time.dt_max` = 1e-4)."),
+    Study(
         "calibration", "Adaptive steps: the error a tolerance buys", "cases/pulse-koiter-thick.toml", "errors",
         probes=("eta_z1", "eta_z2", "eta_z3"),
         sets=("mesh.nz=24", "mesh.nr=4", "time.dt=1e-6", "solver.volume_margin=2", "solver.energy_margin=0.05"),
@@ -173,11 +202,15 @@ STUDIES: tuple[Study, ...] = (
               + tolerance_runs("splitting-tr-bdf2", '{model="kinematic-splitting",scheme="tr-bdf2"}',
                                "splitting under the impedance, TR-BDF2", ("1e-2", "1e-3", "1e-4"))
               + tolerance_runs("paper-cn-beta1", COUPLERS[2][1], "the paper's splitting, CN, β = 1",
-                               ("1e-2", "1e-3", "1e-4"))),
+                               ("1e-2", "1e-3", "1e-4"))
+              + tolerance_runs("monolithic-cn-per-unit-step", '{model="monolithic",scheme="crank-nicolson"}',
+                               "monolithic CN per unit step", ("1e-2", "1e-3", "1e-4"),
+                               ('time.control="per-unit-step"',))),
         about="The composite wall's pulse on 24 × 4 cells (the time error alone: the reference is on the same "
               "mesh), first step 1e-6 s, each adaptive coupler at tolerances 1e-2, 1e-3, 1e-4 (per-step "
               "control, the default). The error is the largest over η at z = 1, 2, 3 cm of the relative L∞ "
-              "error; error / tolerance is the calibration (1 is exact). BDF2 runs need "
+              "error; error / tolerance is the calibration (1 is exact). The last runs share the tolerance per unit step "
+              "(`time.control = \"per-unit-step\"`) instead. BDF2 runs need "
               "`solver.energy_margin=0.05` (its G-norm depends on the step ratio, theory §4)."),
     Study(
         "carotid", "The carotid-like artery: its checks, and refined in space", "cases/carotid.toml", "scene",
@@ -274,11 +307,12 @@ def finished(folder: Path, digest: str) -> bool:
 
 
 def commit() -> str:
-    """The checkout's commit, "+ changes" when its tracked files differ from it."""
+    """The checkout's commit, "+ changes" when the code or the cases a run reads differ from it."""
     try:
         head = subprocess.run(["git", "rev-parse", "--short=10", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                               check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "multilayer",
+                                "multilayer_plugins", "cases"], cwd=ROOT, capture_output=True,
                                text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
