@@ -152,7 +152,7 @@ STUDIES: tuple[Study, ...] = (
               "reference 8× finer in Δt, the energy ledger's largest relative residual, the median wall time. "
               "Every run takes `solver.volume_margin=2`: the paper's Robin term loses volume through the wall."),
     Study(
-        "couplers-composite", "Every coupler's error and order in Δt: the composite wall",
+        "couplers-composite", "Every coupler in the time step: the composite wall",
         "cases/pulse-koiter-thick.toml", "orders", probes=("eta_z1", "eta_z2", "eta_z3"), repeat=3,
         sets=("solver.volume_margin=2", "solver.energy_margin=0.05"),
         reference=Run("reference", (MONOLITHIC_CN, "time.dt=3.125e-6"), text="monolithic CN, Δt = 3.125e-6"),
@@ -165,7 +165,7 @@ STUDIES: tuple[Study, ...] = (
               "a target error is the cheapest run that reaches it, else extrapolated from the finest run with the "
               "last observed order (\"estimated\")."),
     Study(
-        "couplers-koiter", "Every coupler's error and order in Δt: the Koiter shell alone",
+        "couplers-koiter", "Every coupler in the time step: the Koiter shell alone",
         "cases/pulse-koiter.toml", "orders", probes=("eta_z1", "eta_z2", "eta_z3"), repeat=3,
         sets=("solver.volume_margin=2", "solver.energy_margin=0.05"),
         reference=Run("reference", (MONOLITHIC_CN, "time.dt=3.125e-6"), text="monolithic CN, Δt = 3.125e-6"),
@@ -173,7 +173,7 @@ STUDIES: tuple[Study, ...] = (
         about="The same on `cases/pulse-koiter.toml`: a Koiter shell (h = 0.1 cm) alone, a heavier wall "
               "against the fluid than the composite one's shell (ρ₁h/(ρ_f R) = 0.22); columns as above."),
     Study(
-        "light-wall", "The lightest wall: every coupler at ρ₁h/(ρ_f R) = 1e-3", "cases/pulse-koiter.toml", "errors",
+        "light-wall", "The lightest wall: every coupler at a mass ratio of 1e-3", "cases/pulse-koiter.toml", "errors",
         probes=("eta_z1",), sets=LIGHT_WALL,
         reference=Run("reference", (MONOLITHIC_CN, "time.dt=2.5e-6"), text="monolithic CN, Δt = 2.5e-6"),
         runs=tuple(Run(f"{label}-1e-4", (coupler(spec), "time.dt=1e-4"), text=f"{group}, Δt = 1e-4")
