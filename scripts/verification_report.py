@@ -32,6 +32,7 @@ import re
 import statistics
 import subprocess
 import sys
+import textwrap
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -542,7 +543,8 @@ def described(study: Study) -> list[str]:
     made = f"`{study.case}`" + (f" with {sets}" if sets else "")
     runs = f"{len(study.runs)} runs" + (f" × {study.repeat}" if study.repeat > 1 else "")
     ref = f", against {name(study.reference)}" if study.reference else ""
-    return [f"## {study.title}", "", study.about, "", f"Runs: {made}; {runs}{ref}."]
+    return [f"## {study.title}", "", textwrap.fill(study.about, 100), "",
+            textwrap.fill(f"Runs: {made}; {runs}{ref}.", 100, break_on_hyphens=False)]
 
 
 def rendered(study: Study, out: Path) -> list[str]:
@@ -551,13 +553,15 @@ def rendered(study: Study, out: Path) -> list[str]:
     made = sorted({(r["commit"], r["date"]) for r in record["runs"].values()})
     when = "; ".join(f"commit {c}, {d}" for c, d in made) or "commit and date not recorded"
     wall = f", {record['wall_time_s']:.0f} s of runs" if "wall_time_s" in record else ""
-    lines = [*described(study), "", f"Made by `{command(study)}` ({when}{wall}).", "",
+    lines = [*described(study), "", textwrap.fill(f"Made by `{command(study)}` ({when}{wall}).", 100,
+                                                break_on_hyphens=False), "",
              *TABLES[study.table](study, out)]
-    return [begin(study), *lines, end(study)]
+    return [begin(study), *"\n".join(lines).split("\n"), end(study)]
 
 
 def not_run(study: Study) -> list[str]:
-    return [begin(study), *described(study), "", f"Not run yet: `{command(study)}`.", end(study)]
+    lines = [*described(study), "", f"Not run yet: `{command(study)}`."]
+    return [begin(study), *"\n".join(lines).split("\n"), end(study)]
 
 
 def sections_of(text: str) -> dict[str, list[str]]:
