@@ -101,3 +101,15 @@ def test_a_section_says_its_command_and_survives_a_partial_regeneration(vr, tmp_
 
 def test_accuracy_is_a_page_read_in_one_sitting():
     assert len((ROOT / "docs" / "accuracy.md").read_text().splitlines()) <= 400
+
+
+def test_a_report_keeps_what_it_does_not_regenerate(vr, tmp_path, monkeypatch):
+    """--only and --render keep the sections of the studies whose runs the folder does not hold; a study never
+    run says the command that runs it."""
+    study = vr.Study("tiny", "A tiny study", "cases/quick-start.toml", "peaks", probes=("eta_z1",),
+                     reference=vr.Run("reference", ("time.end=0.001",)), runs=(vr.Run("a", ("time.end=0.001",)),))
+    monkeypatch.setattr(vr, "STUDIES", (study,))
+    fresh = vr.report(tmp_path, set())
+    assert f"Not run yet: `{vr.command(study)}`." in fresh and "- [A tiny study](#a-tiny-study)" in fresh
+    earlier = fresh.replace("Not run yet", "A table made earlier; not run yet")
+    assert "A table made earlier" in vr.report(tmp_path, set(), earlier)
