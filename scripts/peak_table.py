@@ -5,7 +5,8 @@
 
 The reference's row gives its peaks (max over time of each probe, µm for an ``eta`` probe); every other row the
 relative difference of its peaks from those, its Δt, the energy ledger's largest relative residual and its wall
-time, from each folder's ``series.csv`` and ``summary.json``.  docs/accuracy.md, "The quick start's answer".
+time, from each folder's ``series.csv`` and ``summary.json``.  docs/verification.md has this table of the
+quick start, made by scripts/verification_report.py.
 """
 
 from __future__ import annotations
@@ -14,13 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
+from multilayer.campaign.run_tables import peak_changes, peaks, signed_percent
 from multilayer.results.reading import read_run
-
-
-def peaks(run, probes: list[str]) -> np.ndarray:
-    return np.array([np.max(run.series[p]) for p in probes])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,8 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     for item in args.runs:
         label, _, folder = item.rpartition("=")
         run = read_run(Path(folder).name, Path(folder))
-        change = peaks(run, probes) / ref_peaks - 1.0
-        print(row(label, run, [f"{100 * c:+.2f} %".replace("-", "−") for c in change]))
+        print(row(label, run, [signed_percent(c) for c in peak_changes(run, ref, probes)]))
     return 0
 
 

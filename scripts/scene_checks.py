@@ -9,7 +9,8 @@ relative residual, the volume's relative drift (summary.json), the range of ``--
 and its largest change from the period before (relative to its peak), and for each ``probe:section:eta``
 triple the range of the centreline probe over the section's mean velocity Q/(π(R + η)²) (the section as the
 wall has moved it) at the rows where that mean exceeds 5 cm/s.  With several runs, the largest change of each centreline probe between successive runs (interpolated
-onto the first run's times that every run reached): the mesh-refinement table of docs/accuracy.md, "The carotid-like artery".
+onto the first run's times that every run reached): the tables of docs/verification.md's carotid studies
+(scripts/verification_report.py).
 """
 
 from __future__ import annotations
@@ -18,12 +19,13 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from multilayer.plugin.units import MMHG
+from multilayer.campaign.run_tables import (
+    centreline_changes,
+    markdown,
+    scene_cells,
+    scene_header,
+)
 from multilayer.results.reading import read_run
-
-FLOWING = 5.0  # cm/s: the mean velocity above which the centreline ratio is read
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,36 +38,16 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     pairs = [tuple(item.split(":")) for item in args.centreline.split(",")]
     runs = [read_run(folder.name, folder) for folder in args.runs]
-    print("| run | status | steps | energy | volume drift | " + f"{args.pressure} last cycle (mmHg) | periodic | "
-          + " | ".join(f"{probe} / mean" for probe, _, _ in pairs) + " |")
-    print("|---" * (7 + len(pairs)) + "|")
-    for folder, run in zip(args.runs, runs):
-        s, t, summary = run.series, run.t, run.summary
-        p = s[args.pressure] / MMHG
-        last = t > t[-1] - args.period
-        before = (t > t[-1] - 2 * args.period) & ~last
-        periodic = "—"
-        if t[-1] >= 2 * args.period - 1e-9 and before.any():
-            shifted = np.interp(t[last] - args.period, t[before], p[before])
-            periodic = f"{np.max(np.abs(p[last] - shifted)) / np.max(np.abs(p[last])):.2%}"
-        ratios = []
-        for probe, section, eta in pairs:
-            mean = s[section] / (np.pi * (args.radius + s[eta]) ** 2)
-            flowing = mean > FLOWING
-            r = s[probe][flowing] / mean[flowing]
-            ratios.append(f"{r.min():.2f} … {r.max():.2f}")
-        print(f"| {folder.name} | {summary['status']} | {summary['steps']} | "
-              f"{summary['energy']['max_relative_residual']:.1e} | {summary['volume']['relative_drift']:.2e} | "
-              f"{p[last].min():.1f} … {p[last].max():.1f} | {periodic} | " + " | ".join(ratios) + " |")
+    print("\n".join(markdown(["run", *scene_header(pairs, args.pressure)],
+                             [[folder.name, *scene_cells(run, args.radius, pairs, args.pressure, args.period)]
+                              for folder, run in zip(args.runs, runs)])))
     if len(runs) > 1:
         print()
-        print("| runs | " + " | ".join(f"max change of {probe} (cm/s)" for probe, _, _ in pairs) + " |")
-        print("|---" * (1 + len(pairs)) + "|")
         t0 = runs[0].t[runs[0].t <= min(run.t[-1] for run in runs)]  # the times every run reached
-        for (fa, a), (fb, b) in zip(zip(args.runs, runs), zip(args.runs[1:], runs[1:])):
-            changes = [np.max(np.abs(np.interp(t0, a.t, a.series[probe]) - np.interp(t0, b.t, b.series[probe])))
-                       for probe, _, _ in pairs]
-            print(f"| {fa.name} → {fb.name} | " + " | ".join(f"{c:.2f}" for c in changes) + " |")
+        probes = [probe for probe, _, _ in pairs]
+        print("\n".join(markdown(["runs", *(f"max change of {probe} (cm/s)" for probe in probes)],
+                                 [[f"{fa.name} → {fb.name}", *(f"{c:.2f}" for c in centreline_changes(a, b, probes, t0))]
+                                  for (fa, a), (fb, b) in zip(zip(args.runs, runs), zip(args.runs[1:], runs[1:]))])))
     return 0
 
 

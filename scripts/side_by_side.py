@@ -8,11 +8,11 @@ runs take turns (run 1, run 2, ..., then again), ``--repeat`` times each,
 into ``OUT/LABEL/i``, so a shared machine's load falls on all of them alike.
 Prints a Markdown table: status, accepted steps, the steps' range, the median
 wall time, and the largest over the probes of the relative L∞ error and the
-peak error (``multilayer.campaign.accuracy.probe_errors``) against the
+peak error (``multilayer.campaign.run_tables.errors_against``) against the
 reference run's folder (its series interpolated linearly onto each run's
 times), over the rows with t ≥ ``--after`` (all by default).  ``--measure-only``
 measures the runs an earlier call left in OUT again, running nothing.
-docs/accuracy.md, "Adaptive steps", uses it for the cost of a target error.
+scripts/verification_report.py makes the same table for the studies of docs/verification.md.
 """
 
 from __future__ import annotations
@@ -22,21 +22,10 @@ import statistics
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from multilayer.campaign.accuracy import probe_errors
+from multilayer.campaign.run_tables import dt_cell, errors_against, percent, steps_taken
 from multilayer.case.casefile import load_case
 from multilayer.results.reading import read_run
 from multilayer.runner.loop import run_case
-
-
-def errors(folder: Path, reference, probes: list[str], after: float = 0.0) -> tuple[float, float]:
-    """(L∞ error, peak error), each the largest over ``probes``, over the rows with t ≥ ``after`` (both series)."""
-    run = read_run(folder.name, folder)
-    mine, theirs = np.asarray(run.t) >= after, np.asarray(reference.t) >= after
-    found = [probe_errors(np.asarray(run.t)[mine], np.asarray(run.series[p])[mine], np.asarray(reference.t)[theirs],
-                          np.asarray(reference.series[p])[theirs]) for p in probes]
-    return max(e["relative_linf"] for e in found), max(e["peak_error"] for e in found)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -65,18 +54,17 @@ def main(argv: list[str] | None = None) -> int:
                 run_case(load_case(args.case, [*args.sets, *sets]), folder, force=True)
             summary = read_run(label, folder).summary
             times[label].append(summary["wall_time_s"])
-            adaptive = summary.get("adaptive", {})
-            last[label] = (summary["status"], adaptive.get("accepted", summary["steps"]), adaptive.get("rejected", 0),
-                           adaptive.get("dt_range", [summary["dt"]] * 2), folder)
+            last[label] = (summary["status"], *steps_taken(summary), folder)
             print(f"{label} #{i}: {summary['status']}, {summary['wall_time_s']:.3g} s", file=sys.stderr)
     print("| run | status | steps (rejected) | Δt (s) | median wall time (s) | wall times (s) | L∞ error | peak error |")
     print("|---|---|---|---|---|---|---|---|")
     for label, _ in runs:
         status, steps, rejected, (small, large), folder = last[label]
-        linf, peak = errors(folder, reference, probes, args.after) if status == "ok" else (float("nan"),) * 2
-        dt = f"{small:.3g}" if small == large else f"{small:.3g} … {large:.3g}"
-        print(f"| `{label}` | {status} | {steps} ({rejected}) | {dt} | {statistics.median(times[label]):.3g} | "
-              f"{', '.join(f'{t:.3g}' for t in times[label])} | {100 * linf:.3g} % | {100 * peak:.3g} % |")
+        linf, peak = (errors_against(read_run(label, folder), reference, probes, args.after) if status == "ok"
+                      else (float("nan"),) * 2)
+        print(f"| `{label}` | {status} | {steps} ({rejected}) | {dt_cell(small, large)} | "
+              f"{statistics.median(times[label]):.3g} | {', '.join(f'{t:.3g}' for t in times[label])} | "
+              f"{percent(linf)} | {percent(peak)} |")
     return 0
 
 

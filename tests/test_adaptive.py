@@ -150,7 +150,7 @@ def test_adaptive_steps_are_stable_at_the_lightest_wall(tmp_path, coupler, contr
     every step, the ledger closed at every step (measured: monolithic at tol 1e-3 2 307 accepted steps, the
     splitting at tol 3e-1 2 025, monolithic per unit step 2 254; max (E − W)/max|W| ≤ −6.3e-25, residual
     ≤ 1.9e-12; over 0.2 s with dt_max = 1e-4 monolithic took 4 129 steps, the splitting at 1e-2 28 335,
-    monolithic per unit step 3 262: docs/accuracy.md)."""
+    monolithic per unit step 3 262)."""
     code, summary, rows = run_cli(
         "pulse-koiter", tmp_path / "light",
         'layers[0]={ model = "koiter-shell", density = 1.0, thickness = 0.0005, young = 7.5e7, poisson = 0.49 }',
@@ -282,7 +282,7 @@ def test_the_splittings_start_at_1e_5_goes_through_per_step_and_stops_at_dt_min_
 
 @pytest.mark.parametrize("control", [(), (PER_UNIT_STEP,)], ids=["per-step", "per-unit-step"])
 def test_the_splittings_error_is_within_3x_of_its_tolerance_over_a_decade(tmp_path, control):
-    """The calibration of docs/accuracy.md on the coarse pulse (12 × 3 cells, 4 ms; η at z = 1, 2 cm against
+    """The calibration of docs/verification.md (adaptive steps) on a coarse pulse (12 × 3 cells, 4 ms; η at z = 1, 2 cm against
     monolithic CN at Δt = 2.5e-6): the relative L∞ error over the tolerance, measured per step (its next-step
     error under a PI controller of its own, q = 1) 0.64 at 1e-2 and 0.65 at 1e-3 — with the step's q = 3 it was
     0.32 at 1e-2, outside the band; per unit step 1.07 and 1.07; the acceptance's band is [1/3, 3]."""

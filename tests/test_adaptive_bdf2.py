@@ -105,7 +105,7 @@ def test_an_adaptive_bdf2_run_past_the_default_energy_margin_says_why_and_what_t
 
 @pytest.mark.slow
 def test_adaptive_bdf2_reaches_its_tolerance_within_3x_on_the_pulse(tmp_path):
-    """The calibration of docs/accuracy.md on a coarser mesh (12 × 3, T = 12 ms), reference monolithic CN at
+    """The calibration of docs/verification.md (adaptive steps) on a coarser mesh (12 × 3, T = 12 ms), reference monolithic CN at
     Δt = 5e-6: the relative L∞ error of η at z = 1, 2, 3 cm over the tolerance, measured 0.99 (tol 1e-2, 427
     steps) and 1.26 (1e-3, 1 284 steps); per unit step 2.21 (310) and 2.48 (1 056)."""
     import json

@@ -31,7 +31,7 @@ def test_the_carotid_systole_keeps_volume_energy_and_a_bounded_centreline(tmp_pa
 
 
 def test_the_scene_checks_script_reads_the_runs_it_is_given(tmp_path, capsys):
-    """scripts/scene_checks.py, which docs/accuracy.md's carotid table comes from: its row of a run is that run's
+    """scripts/scene_checks.py, which prints the tables of docs/verification.md's carotid studies: its row of a run is that run's
     summary and series, and the change between two runs of one mesh is zero."""
     import importlib.util
     from pathlib import Path

@@ -219,7 +219,7 @@ def test_first_order_couplers_are_first_order(coupler, low, reference, tmp_path)
     monolithic-be   0.444 0.237 0.123 → 0.91 0.95 | 0.097 0.056 0.030 → 0.78 0.89
 
     First order with a large constant: the splitting approaches order 1 only
-    below Δt ≈ 1e-5 (docs/accuracy.md has the full-resolution study).
+    below Δt ≈ 1e-5 (docs/verification.md has a full-resolution study).
     """
     case, ref = reference
     errors, orders = _orders(case, ref, coupler, (1e-4, 5e-5, 2.5e-5), tmp_path)

@@ -108,7 +108,7 @@ def reference(tmp_path_factory):
 def test_monolithic_time_orders_on_a_thick_lumen(scheme, low, reference, tmp_path):
     """Error max_t |η − η_ref| / max_t |η_ref| at z = 1, 2 for Δt = 1e-4, 5e-5, 2.5e-5 (every Δt divides the
     reference's, so the times match).  Measured: backward Euler 0.26, 0.16, 0.085 (orders 0.75, 0.87: still
-    approaching 1 from below, as on the thin walls of docs/accuracy.md); Crank–Nicolson 1.7e-2, 4.2e-3, 9.9e-4
+    approaching 1 from below, as on the thin walls of docs/verification.md); Crank–Nicolson 1.7e-2, 4.2e-3, 9.9e-4
     (2.02, 2.07); BDF2 6.1e-2, 1.6e-2, 4.0e-3 (1.93, 1.99).  Implicit DN Crank–Nicolson at tolerance 1e-10 has
     monolithic CN's errors to 8 digits."""
     errors = []
