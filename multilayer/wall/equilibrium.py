@@ -54,7 +54,8 @@ class Unsettled(ValueError):
 
 
 def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None,
-                      start: np.ndarray | None = None, tolerance: float = TOLERANCE) -> np.ndarray:
+                      start: np.ndarray | None = None, tolerance: float = TOLERANCE,
+                      steps_from: np.ndarray | None = None) -> np.ndarray:
     """The wall displacement d (wall numbering, essential DOFs zero) with f_int(d) = f under the lumen pressure
     ``pressure`` and the outer surface's ``external`` (dyn/cm²).  ``stats``: where a nonlinear wall's Newton
     solves and factorizations are counted.  ``start``: where a nonlinear wall's iteration starts (default
@@ -62,7 +63,9 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     deformation that Newton's method does not reach from rest in one).  ``tolerance``: the relative residual a
     nonlinear wall's Newton iteration ends at (a nearly incompressible band under a large deformation has a
     round-off floor of about κ·10⁻¹⁶|d|/(h σ), κ its bulk modulus, σ its stress, h its cells' size, which may
-    lie above the default).
+    lie above the default).  ``steps_from``: where the load steps start when they are needed (default
+    ``start``): the wall's equilibrium under no load (a prestressed wall's stress-free state,
+    :mod:`multilayer.wall.prestress`, while ``start`` is a guess near the loaded one).
 
     A nonlinear wall that Newton's method does not bring from ``start`` to the equilibrium in one solve is
     brought there by load steps (:func:`_in_load_steps`).
@@ -79,15 +82,19 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     except NewtonError:
         if stack.linear:
             raise
+    if steps_from is not None:  # the equilibrium under no load already
+        return _in_load_steps(stack, pressure, external, stats, stack.zero_fixed(steps_from), tolerance, True)
     return _in_load_steps(stack, pressure, external, stats, start, tolerance)
 
 
 def _in_load_steps(stack: Stack, pressure: float, external: float, stats: SolverStats | None,
-                   start: np.ndarray | None, tolerance: float) -> np.ndarray:
+                   start: np.ndarray | None, tolerance: float, unloaded: bool = False) -> np.ndarray:
     """The nonlinear wall's equilibrium under the loads scaled by s from 0 to 1, in steps that start at
     :data:`FIRST_STEP`, halve where Newton's iteration fails (down to :data:`SMALLEST_STEP`, then the failure is
-    raised) and double after a success; each step from the last one's equilibrium (the first from ``start``)."""
-    d = _settle(stack, 0.0, 0.0, stats, start, tolerance)
+    raised) and double after a success; each step from the last one's equilibrium (the first from ``start``,
+    the equilibrium under no load solved from it, or ``start`` itself when it is one: ``unloaded``, where the
+    relative residual of an unstressed wall is round-off over round-off)."""
+    d = start if unloaded else _settle(stack, 0.0, 0.0, stats, start, tolerance)
     done, step = 0.0, FIRST_STEP
     while done < 1.0:
         step = min(step, 1.0 - done)
@@ -125,7 +132,7 @@ def _settle(stack: Stack, pressure: float, external: float, stats: SolverStats |
         if linear:
             new[free] = newton(None, lambda x, r: factors(r), None, linear=True, first=f[free]).x
         else:
-            new[free] = newton(lambda x: _out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
+            new[free] = newton(lambda x: out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
                                d[free], stats=stats, tolerance=tolerance, what="the wall's static equilibrium").x
         change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
         d = new
@@ -145,7 +152,7 @@ def _full(stack: Stack, x: np.ndarray) -> np.ndarray:
     return d
 
 
-def _out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms (a nonlinear layer's
     :meth:`~multilayer.wall.layer.NonlinearForms.term_size`)."""
     d = _full(stack, x)
