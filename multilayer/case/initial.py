@@ -89,25 +89,35 @@ leave initial.displacement out
                     f"leave {given} out")]
 
 
-def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, list[Problem]]:
-    """The ``[initial]`` table's ``pressure`` (None: unset) and its problems: the table's keys (``displacement``
-    and ``velocity`` are read by the caller), a case without both a fluid and a wall (``coupled`` False: there
-    is no fluid to rest at it, or no wall to hold it), and :func:`equilibrium_problems`.
+def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, bool, list[Problem]]:
+    """The ``[initial]`` table's ``pressure`` (None: unset), ``prestress`` and their problems: the table's keys
+    (``displacement`` and ``velocity`` are read by the caller), a case without both a fluid and a wall
+    (``coupled`` False: there is no fluid to rest at it, or no wall to hold it), a prestress without a pressure
+    (the geometry imaged under what?), and :func:`equilibrium_problems`.
 
-    >>> print(*initial_pressure({"pressure": 2000.0}, coupled=False)[1])
+    >>> print(*initial_pressure({"pressure": 2000.0}, coupled=False)[2])
     initial.pressure = 2000.0: a fluid at rest at a pressure against a wall, but the case has not both; \
 leave initial.pressure out
+    >>> print(*initial_pressure({"prestress": True}, coupled=True)[2])
+    initial.prestress = True: the geometry as imaged under initial.pressure, but initial.pressure is unset; \
+set initial.pressure (the pressure the wall was imaged at), or leave initial.prestress out
     """
     values, problems = check_params(data, INITIAL, "initial", extra=("displacement", "velocity"))
-    pressure = values.get("pressure")
+    pressure, prestress = values.get("pressure"), bool(values.get("prestress", False))
     if pressure is not None and not coupled:
         problems.append(Problem("initial.pressure", pressure, "a fluid at rest at a pressure against a wall, but "
                                 "the case has not both", "leave initial.pressure out"))
-    return pressure, problems + (equilibrium_problems(pressure, data) if isinstance(data, dict) else [])
+    if prestress and pressure is None:
+        problems.append(Problem("initial.prestress", True, "the geometry as imaged under initial.pressure, but "
+                                "initial.pressure is unset", "set initial.pressure (the pressure the wall was "
+                                "imaged at), or leave initial.prestress out"))
+    return pressure, prestress, problems + (equilibrium_problems(pressure, data) if isinstance(data, dict) else [])
 
 
 def initial_data(initial: Initial) -> dict[str, Any]:
-    """``initial`` as the resolved case writes it; ``pressure`` only when set (a case without it keeps its hash)."""
+    """``initial`` as the resolved case writes it; ``pressure`` only when set, ``prestress`` only when true (a case
+    without them keeps its hash)."""
     return {"displacement": {"r": str(initial.displacement_r), "z": str(initial.displacement_z)},
             "velocity": {"r": str(initial.velocity_r), "z": str(initial.velocity_z)},
-            **({} if initial.pressure is None else {"pressure": initial.pressure})}
+            **({} if initial.pressure is None else {"pressure": initial.pressure}),
+            **({"prestress": True} if initial.prestress else {})}

@@ -82,8 +82,11 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     except NewtonError:
         if stack.linear:
             raise
-    if steps_from is not None:  # the equilibrium under no load already
-        return _in_load_steps(stack, pressure, external, stats, stack.zero_fixed(steps_from), tolerance, True)
+    if steps_from is not None:
+        steps_from = stack.zero_fixed(steps_from)
+        load = np.linalg.norm(loads(stack, pressure, external, steps_from)[stack.free])
+        unloaded = np.linalg.norm(stack.force(steps_from)[stack.free]) <= tolerance * load
+        return _in_load_steps(stack, pressure, external, stats, steps_from, tolerance, unloaded)
     return _in_load_steps(stack, pressure, external, stats, start, tolerance)
 
 
@@ -92,8 +95,9 @@ def _in_load_steps(stack: Stack, pressure: float, external: float, stats: Solver
     """The nonlinear wall's equilibrium under the loads scaled by s from 0 to 1, in steps that start at
     :data:`FIRST_STEP`, halve where Newton's iteration fails (down to :data:`SMALLEST_STEP`, then the failure is
     raised) and double after a success; each step from the last one's equilibrium (the first from ``start``,
-    the equilibrium under no load solved from it, or ``start`` itself when it is one: ``unloaded``, where the
-    relative residual of an unstressed wall is round-off over round-off)."""
+    the equilibrium under no load solved from it, or ``start`` itself when ``unloaded``: a wall whose forces
+    there are within the tolerance of the loads', where the relative residual of its unstressed layers would
+    be round-off over round-off)."""
     d = start if unloaded else _settle(stack, 0.0, 0.0, stats, start, tolerance)
     done, step = 0.0, FIRST_STEP
     while done < 1.0:
@@ -119,15 +123,13 @@ def _settle(stack: Stack, pressure: float, external: float, stats: SolverStats |
     linear = stack.linear
     if linear:
         factors = splu(stack.stiffness.tocsc()[free][:, free]).solve
-    outer = -external * space.line_load(space.outer_line)
     settled = ROUND_OFF if linear else tolerance
     stats = SolverStats() if stats is None else stats
     d, previous, first = np.zeros(space.ndofs), np.inf, None
     if start is not None and not linear:
         d = stack.zero_fixed(start)
     for _ in range(MAX_ITERATIONS):
-        eta = space.restrictions[LUMEN] @ d
-        f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
+        f = loads(stack, pressure, external, d)
         new = np.zeros_like(d)
         if linear:
             new[free] = newton(None, lambda x, r: factors(r), None, linear=True, first=f[free]).x
@@ -144,6 +146,13 @@ def _settle(stack: Stack, pressure: float, external: float, stats: SolverStats |
                     f"{MAX_ITERATIONS} iterations (last change {change:.3g} of {size:.3g} cm): the pressure on the moved "
                     f"lumen softens the wall (by P⁰/R per unit η) more than its stiffness holds; a smaller "
                     f"initial.pressure", first)
+
+
+def loads(stack: Stack, pressure: float, external: float, d: np.ndarray) -> np.ndarray:
+    """The loads at the wall ``d``: ``pressure`` on the lumen moved by it, ``external`` on the outer surface."""
+    space = stack.space
+    eta = space.restrictions[LUMEN] @ d
+    return -external * space.line_load(space.outer_line) + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
 
 
 def _full(stack: Stack, x: np.ndarray) -> np.ndarray:

@@ -41,16 +41,21 @@ from multilayer.numerics.newton import TOLERANCE, NewtonError, relative
 from multilayer.wall.checks import LayerError
 from multilayer.wall.equilibrium import (
     Unsettled,
-    lumen_force,
+    loads,
     out_of_balance,
     static_deflection,
 )
-from multilayer.wall.stack import LUMEN, Stack
+from multilayer.wall.stack import Stack
 
 #: the correction |dᵏ|, relative to the reference's displacement |Dᵏ|, the iteration stops at: the wall under P⁰
 #: on the reference found sits on the mesh to that (a nearly incompressible band's out-of-balance force is
 #: κ/σ times its displacement's error, relative to its size: 10⁻⁴ at an error of 10⁻⁹ cm, κ/σ ~ 10⁵ per cm)
 PRECISION = 1e-10
+#: the first step of the pressure, as a fraction of initial.pressure, whose reference is found before the next:
+#: the references at growing pressures, each from the last two (a soft wall is imaged far from its reference,
+#: whose forward solves from the mesh do not converge); halved where a step fails, doubled after a success
+FIRST_STEP = 0.25
+SMALLEST_STEP = 2.0**-6
 #: fixed-point iterations allowed
 MAX_ITERATIONS = 60
 #: a correction that has not shrunk below this fraction of the one before after :data:`PATIENCE` iterations
@@ -59,7 +64,11 @@ STALL = 0.9
 PATIENCE = 4
 #: the correction, relative to |Dᵏ|, below which the fixed point hands over to Newton's method on the
 #: reference (its slowest modes, near held ends, contract by little more than nothing an iteration)
-SWITCH = 1e-3
+SWITCH = 1e-2
+#: the tolerance of the fixed point's forward solves: it hands over to Newton's method at :data:`SWITCH`, which
+#: needs no forward solve, so its corrections need not be exact
+FORWARD_TOLERANCE = 1e-6
+FIXED_POINT = True
 #: the relative step of the differences that apply Newton's Jacobian, its GMRES tolerance and iterations, the
 #: halvings of a step that does not lower the out-of-balance force
 DIFFERENCE = 1e-7
@@ -105,8 +114,9 @@ def prestress(stack: Stack, pressure: float, external: float, stats: SolverStats
               tolerance: float = TOLERANCE, max_iterations: int = MAX_ITERATIONS) -> Prestress:
     """The stress-free reference under which the wall of ``stack`` (built on the imaged mesh, unloaded there)
     is in equilibrium on the mesh under the lumen pressure ``pressure`` and the outer ``external``
-    (dyn/cm²), by the backward displacement fixed point (module docstring).  ``tolerance``: the relative
-    out-of-balance force it stops at, and its forward solves' (``static_deflection``'s) tolerance.
+    (dyn/cm²), by the backward displacement fixed point (module docstring), the pressure in steps
+    (:data:`FIRST_STEP`).  ``tolerance``: the relative out-of-balance force it stops at, and its forward solves'
+    (``static_deflection``'s) tolerance.
 
     Raises
     ------
@@ -118,19 +128,47 @@ def prestress(stack: Stack, pressure: float, external: float, stats: SolverStats
         raise PrestressError("no layer of the wall takes a stress-free reference off its mesh (a finite-strain "
                              "layer: neo-hookean, hgo, neo-hookean-membrane, hgo-membrane)", 0, np.inf)
     stats = SolverStats() if stats is None else stats
+    D, last, done, step = np.zeros(stack.space.ndofs), None, 0.0, FIRST_STEP
+    iterations, found = 0, None
+    while done < 1.0:
+        step = min(step, 1.0 - done)
+        guess = D if last is None else D + (step / last[1]) * (D - last[0])  # the secant predictor
+        try:
+            found = _reference(stack, (done + step) * pressure, (done + step) * external, stack.zero_fixed(guess),
+                               stats, tolerance, max_iterations)
+        except (PrestressError, LayerError) as exc:
+            if step <= SMALLEST_STEP:
+                if isinstance(exc, PrestressError):
+                    raise PrestressError(f"{exc} (at {done + step:.4g} of initial.pressure, in steps down to "
+                                         f"{SMALLEST_STEP:g} of it)", iterations + exc.iterations,
+                                         exc.residual) from exc
+                raise
+            step /= 2.0
+            continue
+        iterations += found.iterations
+        last, D, done = (D, step), found.reference, done + step
+        step *= 2.0
+    return attrs.evolve(found, iterations=iterations)
+
+
+def _reference(stack: Stack, pressure: float, external: float, start: np.ndarray, stats: SolverStats,
+               tolerance: float, max_iterations: int) -> Prestress:
+    """The reference under ``pressure`` and ``external`` (one step of :func:`prestress`), its iteration from
+    the reference ``start``: the backward displacement fixed point, then Newton's method."""
     free = stack.free
-    D = np.zeros(stack.space.ndofs)
+    D = start.copy()
     guess = None
-    current = stack
+    current = stack.on_reference(D)
     residuals = [imbalance(current, pressure, external)]
     corrections: list[float] = []
     history: list[tuple[np.ndarray, np.ndarray]] = []
-    while not (residuals[-1] <= tolerance or corrections and corrections[-1] <= SWITCH * np.max(np.abs(D))):
+    while FIXED_POINT and not (residuals[-1] <= tolerance or corrections and corrections[-1] <= SWITCH * np.max(np.abs(D))):
         k = len(corrections)
         if k == max_iterations:
             raise _refused(f"did not converge in {k} iterations", residuals, corrections)
         try:
-            d = static_deflection(current, pressure, external, stats, tolerance=tolerance, start=guess, steps_from=D)
+            d = static_deflection(current, pressure, external, stats, tolerance=max(tolerance, FORWARD_TOLERANCE),
+                                  start=guess, steps_from=D)
         except (NewtonError, Unsettled) as exc:
             raise _refused(f"stopped at iteration {k + 1}: the wall under initial.pressure on the reference "
                            f"found so far is not solved ({exc})", residuals, corrections) from exc
@@ -145,7 +183,7 @@ def prestress(stack: Stack, pressure: float, external: float, stats: SolverStats
         history = (history + [(x, r)])[-1 - DEPTH:]
         current = stack.on_reference(D)
         residuals.append(imbalance(current, pressure, external))
-    while not (residuals[-1] <= tolerance or corrections[-1] <= PRECISION * np.max(np.abs(D))):
+    while not (residuals[-1] <= tolerance or corrections and corrections[-1] <= PRECISION * np.max(np.abs(D))):
         if len(corrections) == max_iterations:
             raise _refused(f"did not converge in {max_iterations} iterations", residuals, corrections)
         D, current, step, residual = _newton_step(stack, current, D, _loads(stack, pressure, external), stats)
@@ -159,9 +197,7 @@ def prestress(stack: Stack, pressure: float, external: float, stats: SolverStats
 
 def _loads(stack: Stack, pressure: float, external: float) -> np.ndarray:
     """The loads on the mesh's wall (d = 0): ``pressure`` on the lumen, ``external`` on the outer surface."""
-    space = stack.space
-    return (-external * space.line_load(space.outer_line)
-            + space.prolongations[LUMEN] @ lumen_force(space, pressure, np.zeros(space.lines[LUMEN].ndofs)))
+    return loads(stack, pressure, external, np.zeros(stack.space.ndofs))
 
 
 def _newton_step(stack: Stack, current: Stack, D: np.ndarray, f: np.ndarray,
