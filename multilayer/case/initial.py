@@ -82,11 +82,23 @@ leave initial.displacement out
     >>> equilibrium_problems(None, {"displacement": {"r": "0.01"}}), equilibrium_problems(2000.0, {})
     ([], [])
     """
-    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity") if name in initial)
+    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity") if _given(initial.get(name)))
     if pressure is None or not given:
         return []
     return [Problem("initial.pressure", pressure, f"sets the initial wall (its static equilibrium), and {given} too",
                     f"leave {given} out")]
+
+
+def _given(table: Any) -> bool:
+    """Whether an ``initial.displacement`` or ``velocity`` table is given: present, and not the zero a resolved
+    case writes for it (``{r = "0", z = "0"}``, read back on resume).
+
+    >>> _given(None), _given({"r": "0", "z": "0"}), _given({"r": "0.01"})
+    (False, False, True)
+    """
+    if table is None:
+        return False
+    return not (isinstance(table, dict) and all(str(v).strip() == "0" for v in table.values()))
 
 
 def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, bool, list[Problem]]:
@@ -99,7 +111,7 @@ def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, bool, list
     initial.pressure = 2000.0: a fluid at rest at a pressure against a wall, but the case has not both; \
 leave initial.pressure out
     >>> print(*initial_pressure({"prestress": True}, coupled=True)[2])
-    initial.prestress = True: the geometry as imaged under initial.pressure, but initial.pressure is unset; \
+    initial.prestress = true: the geometry as imaged under initial.pressure, but initial.pressure is unset; \
 set initial.pressure (the pressure the wall was imaged at), or leave initial.prestress out
     """
     values, problems = check_params(data, INITIAL, "initial", extra=("displacement", "velocity"))

@@ -86,19 +86,29 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
         steps_from = stack.zero_fixed(steps_from)
         load = np.linalg.norm(loads(stack, pressure, external, steps_from)[stack.free])
         unloaded = np.linalg.norm(stack.force(steps_from)[stack.free]) <= tolerance * load
-        return _in_load_steps(stack, pressure, external, stats, steps_from, tolerance, unloaded)
+        return _in_load_steps(stack, pressure, external, stats, steps_from, tolerance, unloaded, steps_from)
     return _in_load_steps(stack, pressure, external, stats, start, tolerance)
 
 
 def _in_load_steps(stack: Stack, pressure: float, external: float, stats: SolverStats | None,
-                   start: np.ndarray | None, tolerance: float, unloaded: bool = False) -> np.ndarray:
+                   start: np.ndarray | None, tolerance: float, unloaded: bool = False,
+                   steps_from: np.ndarray | None = None) -> np.ndarray:
     """The nonlinear wall's equilibrium under the loads scaled by s from 0 to 1, in steps that start at
     :data:`FIRST_STEP`, halve where Newton's iteration fails (down to :data:`SMALLEST_STEP`, then the failure is
     raised) and double after a success; each step from the last one's equilibrium (the first from ``start``,
     the equilibrium under no load solved from it, or ``start`` itself when ``unloaded``: a wall whose forces
     there are within the tolerance of the loads', where the relative residual of its unstressed layers would
-    be round-off over round-off)."""
-    d = start if unloaded else _settle(stack, 0.0, 0.0, stats, start, tolerance)
+    be round-off over round-off; from ``steps_from`` too when the equilibrium under no load is not reached
+    from it, for that reason)."""
+    if unloaded:
+        d = start
+    else:
+        try:
+            d = _settle(stack, 0.0, 0.0, stats, start, tolerance)
+        except NewtonError:
+            if steps_from is None:
+                raise
+            d = start  # near-unstressed layers' relative residual stays round-off over round-off: step from it
     done, step = 0.0, FIRST_STEP
     while done < 1.0:
         step = min(step, 1.0 - done)
