@@ -8,26 +8,31 @@ are given the one under which the wall under P⁰ sits on the mesh: the
 displacement D of that reference from the mesh is found by the backward
 displacement fixed point (Bols et al. 2013)
 
-    D⁰ = 0,     dᵏ = the equilibrium under P⁰ on the reference Dᵏ, from the mesh,     Dᵏ⁺¹ = Dᵏ − ωₖ dᵏ,
+    D⁰ = 0,     dᵏ = the equilibrium under P⁰ on the reference Dᵏ, from the mesh,     Dᵏ⁺¹ = Dᵏ − β dᵏ,
 
-relaxed by Aitken's ωₖ (Irons & Tuck: the secant of the last two corrections;
-the plain iteration's error is multiplied by 1 − λ at a hoop stretch λ, and
-diverges beyond λ = 2), dᵏ solved as the static start solves (:func:`~multilayer.wall.equilibrium.static_deflection`: Newton's
-method, load steps where one solve does not reach it).  Its fixed point d = 0 is
-the wall under P⁰ on the mesh: the iteration stops when the out-of-balance
-force of the mesh's state (d = 0) on the reference Dᵏ is within the static
-solves' tolerance of the size of its terms, or the correction |dᵏ| within
-:data:`PRECISION` of |Dᵏ|, so that a run started there, with the fluid at
-rest at P⁰, starts in equilibrium (its first solves move the wall by round-off).  Each layer's energy
+β = ½ with Anderson's acceleration over the last iterates (the plain iteration's
+error is multiplied by 1 − λ at a hoop stretch λ, and diverges beyond λ = 2),
+dᵏ solved as the static start solves (:func:`~multilayer.wall.equilibrium.static_deflection`:
+Newton's method, load steps where one solve does not reach it).  Once the
+correction is below :data:`SWITCH` of |D| (or stalls), Newton's method on the
+reference itself takes over: R(D) = f(P⁰) − f_int(0; D) = 0, its Jacobian
+applied by differences of the forces and solved by GMRES preconditioned by
+−K_T(0; D).  Its solution, d = 0, is the wall under P⁰ on the mesh: the
+iteration stops when the out-of-balance force of the mesh's state on the
+reference is within the static solves' tolerance of the size of its terms,
+or the correction within :data:`PRECISION` of |D|, so that a run started
+there, with the fluid at rest at P⁰, starts in equilibrium (its first solves
+move the wall by round-off).  A soft wall imaged far from its reference is
+reached in steps of the pressure (:data:`FIRST_STEP`).  Each layer's energy
 on its reference is a function W(d) of the displacement from the mesh
 (:meth:`~multilayer.wall.layer.Layer.forms_on_reference`), so its force and
 tangent are W's gradient and Hessian and the energy ledger is unchanged;
 the layers that take no reference (linear ones) are unloaded at the mesh
 and carry none of P⁰.
 
-The iteration is refused (:class:`PrestressError`, at ``initial.prestress``) when it does not converge:
-the corrections |dᵏ| stop shrinking, a forward solve fails (P⁰ beyond what the wall holds from its
-reference), or :data:`MAX_ITERATIONS` pass.
+The iteration is refused (:class:`PrestressError`, at ``initial.prestress``) when it does not converge: a
+forward solve fails, Newton's correction does not lower the out-of-balance force, or :data:`MAX_ITERATIONS`
+pass, in every step of the pressure down to :data:`SMALLEST_STEP`.
 """
 
 from __future__ import annotations
@@ -56,10 +61,10 @@ PRECISION = 1e-10
 #: whose forward solves from the mesh do not converge); halved where a step fails, doubled after a success
 FIRST_STEP = 0.25
 SMALLEST_STEP = 2.0**-6
-#: fixed-point iterations allowed
+#: iterations allowed (fixed point and Newton's method together), for each step of the pressure
 MAX_ITERATIONS = 60
-#: a correction that has not shrunk below this fraction of the one before after :data:`PATIENCE` iterations
-#: is a diverging iteration (the contraction of the backward displacement is some 0.1–0.5 on an artery)
+#: a correction that has not shrunk below this fraction of the one :data:`PATIENCE` iterations before: the fixed
+#: point stalls (or diverges), and Newton's method takes over
 STALL = 0.9
 PATIENCE = 4
 #: the correction, relative to |Dᵏ|, below which the fixed point hands over to Newton's method on the
@@ -68,7 +73,6 @@ SWITCH = 1e-2
 #: the tolerance of the fixed point's forward solves: it hands over to Newton's method at :data:`SWITCH`, which
 #: needs no forward solve, so its corrections need not be exact
 FORWARD_TOLERANCE = 1e-6
-FIXED_POINT = True
 #: the relative step of the differences that apply Newton's Jacobian, its GMRES tolerance and iterations, the
 #: halvings of a step that does not lower the out-of-balance force
 DIFFERENCE = 1e-7
@@ -162,7 +166,7 @@ def _reference(stack: Stack, pressure: float, external: float, start: np.ndarray
     residuals = [imbalance(current, pressure, external)]
     corrections: list[float] = []
     history: list[tuple[np.ndarray, np.ndarray]] = []
-    while FIXED_POINT and not (residuals[-1] <= tolerance or corrections and corrections[-1] <= SWITCH * np.max(np.abs(D))):
+    while not (residuals[-1] <= tolerance or corrections and corrections[-1] <= SWITCH * np.max(np.abs(D))):
         k = len(corrections)
         if k == max_iterations:
             raise _refused(f"did not converge in {k} iterations", residuals, corrections)
