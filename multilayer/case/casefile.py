@@ -521,7 +521,7 @@ class _Validator:
         return Loads(**pressures, wall_motion=self.part("loads.wall_motion", mark, lambda: wall_motion))
 
     def initial(self, data: Any, constants: Mapping[str, float], coupled: bool) -> Initial:
-        pressure, problems = initial_pressure(data, coupled)
+        pressure, prestress, problems = initial_pressure(data, coupled)
         self.add(problems)
         data = data if isinstance(data, Mapping) else {}
         fields = {}
@@ -533,7 +533,7 @@ class _Validator:
                 fields[f"{name}_{component}"] = self.formula(
                     part.get(component, "0"), f"initial.{name}.{component}", constants, wall
                 )
-        return Initial(**fields, pressure=pressure)
+        return Initial(**fields, pressure=pressure, prestress=prestress)
 
     def output(self, data: Any, constants: Mapping[str, float], fluid: ModelSpec | None, layers: list[LayerSpec]) -> Output:
         values, problems = check_params(data, OUTPUT, "output", extra=("probes",))

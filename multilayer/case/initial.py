@@ -72,11 +72,6 @@ R + η ≤ 0 closes the channel; the initial radial displacement must keep R + �
     return []
 
 
-def _zeros(table: Any) -> bool:
-    """Whether an ``initial`` table's every component is the expression ``"0"`` (or the number 0)."""
-    return isinstance(table, dict) and all(str(v).strip() in ("0", "0.0") for v in table.values())
-
-
 def equilibrium_problems(pressure: float | None, initial: Any) -> list[Problem]:
     """``initial.pressure`` (the wall's static equilibrium, :mod:`multilayer.wall.equilibrium`) given together
     with the ``initial`` table's ``displacement`` or ``velocity``: the wall would be given twice.
@@ -89,34 +84,54 @@ leave initial.displacement out
     >>> equilibrium_problems(2000.0, {"displacement": {"r": "0", "z": "0"}})  # a resolved case's defaults
     []
     """
-    # a table of zeros is the default a resolved case spells out (a checkpoint's, resumed): no second wall
-    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity")
-                         if name in initial and not _zeros(initial[name]))
+    given = " and ".join(f"initial.{name}" for name in ("displacement", "velocity") if _given(initial.get(name)))
     if pressure is None or not given:
         return []
     return [Problem("initial.pressure", pressure, f"sets the initial wall (its static equilibrium), and {given} too",
                     f"leave {given} out")]
 
 
-def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, list[Problem]]:
-    """The ``[initial]`` table's ``pressure`` (None: unset) and its problems: the table's keys (``displacement``
-    and ``velocity`` are read by the caller), a case without both a fluid and a wall (``coupled`` False: there
-    is no fluid to rest at it, or no wall to hold it), and :func:`equilibrium_problems`.
+def _given(table: Any) -> bool:
+    """Whether an ``initial.displacement`` or ``velocity`` table is given: present, and not the zero a resolved
+    case writes for it (``{r = "0", z = "0"}``, read back on resume).
 
-    >>> print(*initial_pressure({"pressure": 2000.0}, coupled=False)[1])
+    >>> _given(None), _given({"r": "0", "z": "0"}), _given({"r": "0.01"})
+    (False, False, True)
+    """
+    if table is None:
+        return False
+    return not (isinstance(table, dict) and all(str(v).strip() in ("0", "0.0") for v in table.values()))
+
+
+def initial_pressure(data: Any, coupled: bool) -> tuple[float | None, bool, list[Problem]]:
+    """The ``[initial]`` table's ``pressure`` (None: unset), ``prestress`` and their problems: the table's keys
+    (``displacement`` and ``velocity`` are read by the caller), a case without both a fluid and a wall
+    (``coupled`` False: there is no fluid to rest at it, or no wall to hold it), a prestress without a pressure
+    (the geometry imaged under what?), and :func:`equilibrium_problems`.
+
+    >>> print(*initial_pressure({"pressure": 2000.0}, coupled=False)[2])
     initial.pressure = 2000.0: a fluid at rest at a pressure against a wall, but the case has not both; \
 leave initial.pressure out
+    >>> print(*initial_pressure({"prestress": True}, coupled=True)[2])
+    initial.prestress = true: the geometry as imaged under initial.pressure, but initial.pressure is unset; \
+set initial.pressure (the pressure the wall was imaged at), or leave initial.prestress out
     """
     values, problems = check_params(data, INITIAL, "initial", extra=("displacement", "velocity"))
-    pressure = values.get("pressure")
+    pressure, prestress = values.get("pressure"), bool(values.get("prestress", False))
     if pressure is not None and not coupled:
         problems.append(Problem("initial.pressure", pressure, "a fluid at rest at a pressure against a wall, but "
                                 "the case has not both", "leave initial.pressure out"))
-    return pressure, problems + (equilibrium_problems(pressure, data) if isinstance(data, dict) else [])
+    if prestress and pressure is None:
+        problems.append(Problem("initial.prestress", True, "the geometry as imaged under initial.pressure, but "
+                                "initial.pressure is unset", "set initial.pressure (the pressure the wall was "
+                                "imaged at), or leave initial.prestress out"))
+    return pressure, prestress, problems + (equilibrium_problems(pressure, data) if isinstance(data, dict) else [])
 
 
 def initial_data(initial: Initial) -> dict[str, Any]:
-    """``initial`` as the resolved case writes it; ``pressure`` only when set (a case without it keeps its hash)."""
+    """``initial`` as the resolved case writes it; ``pressure`` only when set, ``prestress`` only when true (a case
+    without them keeps its hash)."""
     return {"displacement": {"r": str(initial.displacement_r), "z": str(initial.displacement_z)},
             "velocity": {"r": str(initial.velocity_r), "z": str(initial.velocity_z)},
-            **({} if initial.pressure is None else {"pressure": initial.pressure})}
+            **({} if initial.pressure is None else {"pressure": initial.pressure}),
+            **({"prestress": True} if initial.prestress else {})}

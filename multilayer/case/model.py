@@ -145,13 +145,15 @@ class Loads:
 class Initial:
     """Initial wall displacement and velocity, as formulas in (z, r); or, with ``pressure``, the fluid at rest at
     that uniform pressure (dyn/cm²) and the wall in static equilibrium under it
-    (:mod:`multilayer.wall.equilibrium`)."""
+    (:mod:`multilayer.wall.equilibrium`); with ``prestress`` too, the wall on the mesh, its finite-strain layers
+    on the stress-free reference that holds it there (:mod:`multilayer.wall.prestress`)."""
 
     displacement_z: Formula
     displacement_r: Formula
     velocity_z: Formula
     velocity_r: Formula
     pressure: float | None = None
+    prestress: bool = False
 
 
 @attrs.frozen

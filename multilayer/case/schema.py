@@ -81,7 +81,11 @@ PROBE = (
 )
 INITIAL = (Param("pressure", "P⁰", "dyn/cm²", default=None,
                  doc="the fluid at rest at this uniform pressure and the wall in static equilibrium under it (and the "
-                     "external pressure at t = 0); unset: the wall as initial.displacement gives it"),)
+                     "external pressure at t = 0); unset: the wall as initial.displacement gives it"),
+           Param("prestress", type=bool, default=False,
+                 doc="the case's geometry is the wall as imaged under initial.pressure: the finite-strain layers' "
+                     "stress-free reference is found so that the wall under it sits on the mesh, and the run "
+                     "starts there, in equilibrium (false: the geometry is the wall unloaded)"))
 OUTPUT = (Param("every", type=int, ge=0, le=MAX_STEPS, default=0, doc="snapshot cadence in steps (0: none)"),)
 SOLVER = (
     Param("linear", type=str, default="superlu", choices=tuple(BACKENDS), doc="sparse direct solver"),

@@ -26,6 +26,7 @@ from multilayer.plugin.problems import MISSING, Problem
 from multilayer.wall import probe
 from multilayer.wall.checks import LayerError
 from multilayer.wall.equilibrium import Unsettled, static_deflection
+from multilayer.wall.prestress import PrestressError, prestress
 from multilayer.wall.stack import LUMEN, Stack, WallSpace, fluid_pinned_lines
 
 #: The largest static deflection |η| of the lumen under ``initial.pressure``, as a fraction of R, that validation
@@ -76,7 +77,26 @@ def static_start_problems(case: Any, coupler: Any, shape: Shape, layers: Sequenc
         stack = Stack.assemble(space, radial_lines(case), fluid_pinned_lines(objects, case.fluid is not None))
     except (NotBuilt, LayerError):
         return []
+    if case.initial.prestress:
+        return prestress_problems(case.initial.pressure, external, stack)
     return deflection_problems(case.initial.pressure, external, stack, case.limits)
+
+
+def prestress_problems(pressure: float, external: float, stack: Stack) -> list[Problem]:
+    """With ``initial.prestress``, the stress-free reference the run finds (:func:`~multilayer.wall.prestress.prestress`),
+    found here: refused at ``initial.prestress`` when the wall has no finite-strain layer, when the fixed point
+    does not converge (its iterations and the last out-of-balance force said), or when a layer fails on it.
+    The wall sits on the mesh, so there is no deflection to weigh."""
+    try:
+        prestress(stack, pressure, external)
+    except PrestressError as exc:
+        return [Problem("initial.prestress", True, f"the wall imaged at initial.pressure = {pressure:g} dyn/cm²: "
+                        f"{exc}", "a smaller initial.pressure (the wall's imaged geometry may be beyond what its "
+                        "layers hold), or leave initial.prestress out")]
+    except LayerError as exc:
+        return [Problem("initial.prestress", True, f"a layer fails on the stress-free reference: {exc}",
+                        "a smaller initial.pressure, or leave initial.prestress out")]
+    return []
 
 
 def deflection_problems(pressure: float, external: float, stack: Stack, limits: Any) -> list[Problem]:

@@ -25,6 +25,7 @@ from multilayer.scene.state import State, WallState
 from multilayer.wall.checks import LayerError, abstract_problem, raised, type_problem
 from multilayer.wall.equilibrium import static_deflection
 from multilayer.wall.layer import Layer
+from multilayer.wall.prestress import prestress
 from multilayer.wall.stack import LUMEN, Stack, WallSpace, fluid_pinned_lines
 
 
@@ -97,10 +98,14 @@ class Setup:
         fluid = build_model(registry, "fluid", case.fluid) if case.fluid is not None else None
         g, m = case.geometry, case.mesh
         wall = stack = None
+        solvers: dict[str, SolverStats] = {}
         if layers:
             wall = WallSpace.build(layers, geometry, g.length, g.radius, m.nz, m.order,
                                    [spec.cells for spec in case.layers], [spec.model for spec in case.layers])
             stack = Stack.assemble(wall, radial_lines, fluid_pinned_lines(layers, fluid is not None))
+            if case.initial.prestress:  # the mesh is the wall imaged at P⁰: its layers on the reference that holds it
+                stack = prestress(stack, case.initial.pressure, case.loads.external.value(0.0),
+                                  solvers.setdefault("static", SolverStats())).stack
         if fluid is not None:
             line = wall.lines[LUMEN] if wall is not None else None
             # the lumen's DOFs the wall holds at rest (a band whose inner face slides): the fluid's u_r is 0 there
@@ -110,7 +115,7 @@ class Setup:
                                    case.solver, case.reuse, line, {end: getattr(case.loads, end) for end in ENDS},
                                    interface_block, held))
         setup = cls(case=case, registry=registry, geometry=geometry, layers=layers, fluid=fluid, wall=wall,
-                    stack=stack)
+                    stack=stack, solvers=solvers)
         setup.timings["assembly"] += time.perf_counter() - t0
         return setup
 
@@ -118,13 +123,16 @@ class Setup:
         """t = 0: the case's initial wall (essential DOFs zeroed), the fluid at rest on the wall's domain.
 
         With ``[initial] pressure`` the wall is the static deflection under it (and the external pressure at
-        t = 0): :func:`~multilayer.wall.equilibrium.static_deflection`.
+        t = 0): :func:`~multilayer.wall.equilibrium.static_deflection`; with ``prestress`` too, the mesh itself
+        (d = 0), which its layers' reference holds under it (:mod:`multilayer.wall.prestress`).
         """
         wall = v = eta = fluid = None
         if self.wall is not None:
             init = self.case.initial
             if init.pressure is None:
                 d0 = self.wall.interpolate(init.displacement_z, init.displacement_r)
+            elif init.prestress:
+                d0 = np.zeros(self.wall.ndofs)
             else:
                 d0 = static_deflection(self.stack, init.pressure, self.case.loads.external.value(0.0),
                                        None if self.stack.linear else self.stats("static"))

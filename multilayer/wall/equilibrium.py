@@ -54,7 +54,8 @@ class Unsettled(ValueError):
 
 
 def static_deflection(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None,
-                      start: np.ndarray | None = None, tolerance: float = TOLERANCE) -> np.ndarray:
+                      start: np.ndarray | None = None, tolerance: float = TOLERANCE,
+                      steps_from: np.ndarray | None = None) -> np.ndarray:
     """The wall displacement d (wall numbering, essential DOFs zero) with f_int(d) = f under the lumen pressure
     ``pressure`` and the outer surface's ``external`` (dyn/cm²).  ``stats``: where a nonlinear wall's Newton
     solves and factorizations are counted.  ``start``: where a nonlinear wall's iteration starts (default
@@ -62,7 +63,9 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     deformation that Newton's method does not reach from rest in one).  ``tolerance``: the relative residual a
     nonlinear wall's Newton iteration ends at (a nearly incompressible band under a large deformation has a
     round-off floor of about κ·10⁻¹⁶|d|/(h σ), κ its bulk modulus, σ its stress, h its cells' size, which may
-    lie above the default).
+    lie above the default).  ``steps_from``: where the load steps start when they are needed (default
+    ``start``): the wall's equilibrium under no load (a prestressed wall's stress-free state,
+    :mod:`multilayer.wall.prestress`, while ``start`` is a guess near the loaded one).
 
     A nonlinear wall that Newton's method does not bring from ``start`` to the equilibrium in one solve is
     brought there by load steps (:func:`_in_load_steps`).
@@ -79,15 +82,33 @@ def static_deflection(stack: Stack, pressure: float, external: float, stats: Sol
     except NewtonError:
         if stack.linear:
             raise
+    if steps_from is not None:
+        steps_from = stack.zero_fixed(steps_from)
+        load = np.linalg.norm(loads(stack, pressure, external, steps_from)[stack.free])
+        unloaded = np.linalg.norm(stack.force(steps_from)[stack.free]) <= tolerance * load
+        return _in_load_steps(stack, pressure, external, stats, steps_from, tolerance, unloaded, steps_from)
     return _in_load_steps(stack, pressure, external, stats, start, tolerance)
 
 
 def _in_load_steps(stack: Stack, pressure: float, external: float, stats: SolverStats | None,
-                   start: np.ndarray | None, tolerance: float) -> np.ndarray:
+                   start: np.ndarray | None, tolerance: float, unloaded: bool = False,
+                   steps_from: np.ndarray | None = None) -> np.ndarray:
     """The nonlinear wall's equilibrium under the loads scaled by s from 0 to 1, in steps that start at
     :data:`FIRST_STEP`, halve where Newton's iteration fails (down to :data:`SMALLEST_STEP`, then the failure is
-    raised) and double after a success; each step from the last one's equilibrium (the first from ``start``)."""
-    d = _settle(stack, 0.0, 0.0, stats, start, tolerance)
+    raised) and double after a success; each step from the last one's equilibrium (the first from ``start``,
+    the equilibrium under no load solved from it, or ``start`` itself when ``unloaded``: a wall whose forces
+    there are within the tolerance of the loads', where the relative residual of its unstressed layers would
+    be round-off over round-off; from ``steps_from`` too when the equilibrium under no load is not reached
+    from it, for that reason)."""
+    if unloaded:
+        d = start
+    else:
+        try:
+            d = _settle(stack, 0.0, 0.0, stats, start, tolerance)
+        except NewtonError:
+            if steps_from is None:
+                raise
+            d = start  # near-unstressed layers' relative residual stays round-off over round-off: step from it
     done, step = 0.0, FIRST_STEP
     while done < 1.0:
         step = min(step, 1.0 - done)
@@ -112,20 +133,18 @@ def _settle(stack: Stack, pressure: float, external: float, stats: SolverStats |
     linear = stack.linear
     if linear:
         factors = splu(stack.stiffness.tocsc()[free][:, free]).solve
-    outer = -external * space.line_load(space.outer_line)
     settled = ROUND_OFF if linear else tolerance
     stats = SolverStats() if stats is None else stats
     d, previous, first = np.zeros(space.ndofs), np.inf, None
     if start is not None and not linear:
         d = stack.zero_fixed(start)
     for _ in range(MAX_ITERATIONS):
-        eta = space.restrictions[LUMEN] @ d
-        f = outer + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
+        f = loads(stack, pressure, external, d)
         new = np.zeros_like(d)
         if linear:
             new[free] = newton(None, lambda x, r: factors(r), None, linear=True, first=f[free]).x
         else:
-            new[free] = newton(lambda x: _out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
+            new[free] = newton(lambda x: out_of_balance(stack, f, x), lambda x, r: _tangent_solve(stack, x, r, stats),
                                d[free], stats=stats, tolerance=tolerance, what="the wall's static equilibrium").x
         change, size = np.max(np.abs(new - d)), np.max(np.abs(new))
         d = new
@@ -139,13 +158,20 @@ def _settle(stack: Stack, pressure: float, external: float, stats: SolverStats |
                     f"initial.pressure", first)
 
 
+def loads(stack: Stack, pressure: float, external: float, d: np.ndarray) -> np.ndarray:
+    """The loads at the wall ``d``: ``pressure`` on the lumen moved by it, ``external`` on the outer surface."""
+    space = stack.space
+    eta = space.restrictions[LUMEN] @ d
+    return -external * space.line_load(space.outer_line) + space.prolongations[LUMEN] @ lumen_force(space, pressure, eta)
+
+
 def _full(stack: Stack, x: np.ndarray) -> np.ndarray:
     d = np.zeros(stack.space.ndofs)
     d[stack.free] = x
     return d
 
 
-def _out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def out_of_balance(stack: Stack, f: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """f − Σ_i f_i(d) on the free DOFs at their values ``x``, and the size of its terms (a nonlinear layer's
     :meth:`~multilayer.wall.layer.NonlinearForms.term_size`)."""
     d = _full(stack, x)

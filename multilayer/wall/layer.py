@@ -171,6 +171,21 @@ class Layer(ABC):
         """DOFs held at zero (in the numbering of ``space``)."""
         return np.zeros(0, dtype=np.int64)
 
+    def forms_on_reference(self, space: Any, reference: np.ndarray) -> LayerMatrices:
+        """The forms of the layer whose stress-free reference is its mesh moved by the displacement ``reference``
+        (``space``'s numbering): the mesh is the wall as imaged under a load, the reference is unloaded
+        (``[initial] prestress``, :mod:`multilayer.wall.prestress`).  The forms' energy W(d) is a function of
+        the displacement d from the mesh, as ``forms``' is, and the layer at d = ``reference`` is unloaded.
+
+        A finite-strain layer overrides it; by default a layer's reference is its mesh (NotImplementedError).
+        """
+        raise NotImplementedError(f"{type(self).__name__} has no stress-free reference other than its mesh")
+
+    @classmethod
+    def takes_reference(cls) -> bool:
+        """Whether the layer overrides :meth:`forms_on_reference` (it can be prestressed)."""
+        return cls.forms_on_reference is not Layer.forms_on_reference
+
 
 class ThinLayer(Layer):
     """A layer on an interface line; unknown: the radial displacement η(z)."""

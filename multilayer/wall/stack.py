@@ -236,6 +236,33 @@ class Stack:
         free = np.setdiff1d(np.arange(n), fixed_all)
         return cls(space, matrices, M, C, K, fixed_all, free)
 
+    def on_reference(self, reference: np.ndarray) -> Stack:
+        """The stack whose layers that take a stress-free reference (:meth:`Layer.takes_reference`) are unloaded
+        at the mesh moved by ``reference`` (wall numbering; each layer given its restriction, a thin one its
+        line's); the other layers' forms kept (unloaded at the mesh).  The essential DOFs are the same.
+
+        Raises
+        ------
+        LayerError
+            Naming the layer whose forms on the reference fail (a reference that folds the band, or closes the
+            channel at a membrane's line).
+        """
+        space = self.space
+        matrices = list(self.matrices)
+        for p in space.placements:
+            if not type(p.layer).takes_reference():
+                continue
+            own = space.restrictions[p.line] @ reference if p.line is not None else reference
+            try:
+                forms = p.layer.forms_on_reference(space.space_of(p), own)
+            except Exception as exc:  # the layer's own code: name it and say where it failed
+                raise LayerError(p.where, [f"forms_on_reference raised {raised(exc)}"]) from exc
+            matrices[p.index] = forms.scattered(space.prolongations[p.line]) if p.line is not None else forms
+        zero = sp.csr_matrix((space.ndofs, space.ndofs))
+        return Stack(space, matrices, sum((m.mass for m in matrices), zero).tocsr(),
+                     sum((m.damping for m in matrices), zero).tocsr(), sum((m.stiffness for m in matrices), zero).tocsr(),
+                     self.fixed, self.free)
+
     def zero_fixed(self, x: np.ndarray) -> np.ndarray:
         """A copy of the wall vector ``x`` with the essential DOFs set to zero."""
         x = np.array(x, dtype=float)

@@ -125,6 +125,18 @@ class HyperelasticBand(ThickLayer):
     def forms(self, space: BandSpace) -> HyperelasticForms:
         kin = BandKinematics.build(space.basis, space.geometry.radial_power, self.axial_stretch, space.order)
         M = (mass.assemble(space.basis, density=self.density / self.axial_stretch)).tocsr()
+        return self._forms(M, kin)
+
+    def forms_on_reference(self, space: BandSpace, reference: np.ndarray) -> HyperelasticForms:
+        """The forms of the band whose reference (unloaded, before λ_z) is the mesh moved by ``reference``
+        (:meth:`.BandKinematics.referenced`); its mass ρ ∫ u·v over the reference volume."""
+        kin = BandKinematics.build(space.basis, space.geometry.radial_power, self.axial_stretch, space.order)
+        kin = kin.referenced(np.asarray(reference, dtype=float))
+        M = (mass.assemble(space.basis, density=self.density * kin.weights / np.asarray(space.basis.dx))).tocsr()
+        return self._forms(M, kin)
+
+    def _forms(self, M: sp.csr_matrix, kin: BandKinematics) -> HyperelasticForms:
+        """The forms of the mass ``M`` and the kinematics ``kin``, their stiffness the tangent at d = 0."""
         forms = HyperelasticForms(M, sp.csr_matrix(M.shape), sp.csr_matrix(M.shape), kin, self.law,
                                   Volumetric(self.bulk))
         return attrs.evolve(forms, stiffness=forms.tangent(np.zeros(kin.ndofs)))

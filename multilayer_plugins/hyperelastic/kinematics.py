@@ -34,7 +34,7 @@ class BandKinematics:
     """
 
     B: np.ndarray  #: (elements, points, 5, local DOFs): ∂F/∂d
-    H0: np.ndarray  #: (5,): F − I at d = 0
+    H0: np.ndarray  #: (5,), or (5, elements, points) on a stress-free reference off the mesh: F − I at d = 0
     weights: np.ndarray  #: (elements, points): the reference volume of each point (the measure's, over λ_z)
     dofs: np.ndarray  #: (local DOFs, elements): the global DOF of each local one
     ndofs: int  #: the global numbering's size
@@ -84,7 +84,44 @@ class BandKinematics:
     def gradient(self, d: np.ndarray) -> np.ndarray:
         """H = F − I (5, elements, points) at the displacement ``d`` (global numbering)."""
         H = (self.B @ d[self.dofs].T[:, None, :, None])[..., 0]  # (E, Q, 5)
-        return self.H0[:, None, None] + H.transpose(2, 0, 1)
+        H0 = self.H0 if self.H0.ndim == 3 else self.H0[:, None, None]
+        return H0 + H.transpose(2, 0, 1)
+
+    def referenced(self, D: np.ndarray) -> BandKinematics:
+        """The kinematics of the band whose reference is the mesh moved by ``D`` (global numbering), stretched
+        back by λ_z (theory §1, "A prestressed wall"): F = (I + ∇d)(I + ∇D)⁻¹ Λ, with Λ the axial stretch, so
+        that at d = D the band is its reference stretched by λ_z alone; the reference volumes are the mesh's over
+        det((I + ∇D)⁻¹ Λ).
+
+        F is still affine in d, F = F_λ(d) M with F_λ this kinematics' F and M = Λ⁻¹(I + ∇D)⁻¹Λ at each point
+        (its hoop entry r/(r + D_r)): B and H₀ are composed with M on the right, the weights and the groups'
+        weights divided by det M.  D = 0 gives these kinematics back.
+        """
+        a = (self.B @ D[self.dofs].T[:, None, :, None])[..., 0].transpose(2, 0, 1)  # (∇D)Λ, D_r/r: (5, E, Q)
+        if self.H0.ndim != 1:
+            raise ValueError("the kinematics are referenced already: build them from the mesh's")
+        lz = 1.0 + self.H0[0]
+        n00, n01, n10, n11 = 1.0 + a[0] / lz, a[1] / lz, a[2], 1.0 + a[3]  # N = I + Λ⁻¹(∇D)Λ
+        det = n00 * n11 - n01 * n10
+        m = np.stack([n11 / det, -n01 / det, -n10 / det, n00 / det, 1.0 / (1.0 + a[4])])  # M = N⁻¹, hoop
+        # M − I = −M Λ⁻¹ (∇D)Λ, formed from D's gradient so that a small D leaves H₀ to round-off of its own size
+        a_l = np.stack([a[0] / lz, a[1] / lz, a[2], a[3]])
+        mi = -np.stack([m[0] * a_l[0] + m[1] * a_l[2], m[0] * a_l[1] + m[1] * a_l[3],
+                        m[2] * a_l[0] + m[3] * a_l[2], m[2] * a_l[1] + m[3] * a_l[3], a[4] / (1.0 + a[4])])
+        H0 = np.stack([lz * mi[0] + self.H0[0], lz * mi[1], mi[2], mi[3], mi[4]])  # Λ M − I = Λ(M − I) + Λ − I
+        B, mt = self.B, m.transpose(1, 2, 0)[..., None]  # (E, Q, 5, 1)
+        composed = np.stack([B[:, :, 0] * mt[:, :, 0] + B[:, :, 1] * mt[:, :, 2],
+                             B[:, :, 0] * mt[:, :, 1] + B[:, :, 1] * mt[:, :, 3],
+                             B[:, :, 2] * mt[:, :, 0] + B[:, :, 3] * mt[:, :, 2],
+                             B[:, :, 2] * mt[:, :, 1] + B[:, :, 3] * mt[:, :, 3],
+                             B[:, :, 4] * mt[:, :, 4]], axis=2)
+        volume = m[4] * (m[0] * m[3] - m[1] * m[2])  # det M
+        if not np.all(volume > 0.0):
+            raise ValueError("the stress-free reference folds over (det(I + ∇D) ≤ 0 at a point of the band)")
+        weights = self.weights / volume
+        groups = (self.groups @ sp.diags((1.0 / volume).ravel())).tocsr()
+        return BandKinematics(np.ascontiguousarray(composed), H0, weights, self.dofs, self.ndofs, groups,
+                              self.per_element)
 
     def local_vector(self, P: np.ndarray) -> np.ndarray:
         """Σ_q P : ∂F/∂d per element (E, local DOFs), from the weighted first derivatives ``P`` (5, E, Q)."""

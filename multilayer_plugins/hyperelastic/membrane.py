@@ -83,6 +83,12 @@ def internal_tangent(u, psi, w):
     return w["A"] * u * psi + w["B"] * (u * psi.grad[0] + u.grad[0] * psi) + w["C"] * u.grad[0] * psi.grad[0]
 
 
+@skfem.BilinearForm
+def weighted_mass(u, psi, w):
+    """∫ m u ψ: a mass per unit area m at the quadrature points."""
+    return w["weight"] * u * psi
+
+
 @attrs.frozen(eq=False)
 class MembraneForms(NonlinearForms):
     """The membrane's forms on a line: W, its gradient and Hessian from η, η_z at the quadrature points."""
@@ -92,31 +98,40 @@ class MembraneForms(NonlinearForms):
     thickness: float  #: h (cm)
     radius: float  #: R (cm)
     axial_stretch: float  #: λz0
+    #: on a reference off the line (:meth:`HyperelasticMembrane.forms_on_reference`), at the quadrature points:
+    #: R/(R + D) (the hoop stretch's factor), √(1 + D_z²) (the reference meridian's length element), and
+    #: ((R + D)/R)ᵏ √(1 + D_z²) (the reference's area over the line's); 1 on the line itself
+    hoop: Any = 1.0
+    meridian: Any = 1.0
+    area: Any = 1.0
 
     def _state(self, d: np.ndarray) -> tuple[MembraneEnergy, np.ndarray, np.ndarray, np.ndarray]:
-        """Ψ and its derivatives at the stretches of ``d``, with λz' and λz'' = ∂²λz/∂η_z² = λz0/(1 + η_z²)^(3/2)."""
+        """Ψ and its derivatives at the stretches of ``d``, with λz' and λz'' = ∂²λz/∂η_z² = λz0/(1 + η_z²)^(3/2)
+        (over the reference's meridian element), and the scale h/λz0 of Ψ per unit area of the line."""
         eta = self.basis.interpolate(d)
         slope = eta.grad[0]
         root = np.sqrt(1.0 + slope * slope)
         lz0 = self.axial_stretch
-        psi = self.law.energy(1.0 + np.asarray(eta) / self.radius, lz0 * root)
-        return psi, lz0 * slope / root, lz0 / root**3, self.thickness / lz0
+        psi = self.law.energy((1.0 + np.asarray(eta) / self.radius) * self.hoop, lz0 * root / self.meridian)
+        return (psi, lz0 * slope / root / self.meridian, lz0 / root**3 / self.meridian,
+                self.thickness / lz0 * self.area)
 
     def elastic(self, d: np.ndarray) -> float:
         """W(d) = ∫ (h/λz0)(Ψ(λθ, λz) − Ψ(1, λz0)) dA."""
         psi, _, _, scale = self._state(d)
-        rest = self.law.energy(np.ones(1), np.full(1, self.axial_stretch)).value[0]
+        rest = self.law.energy(np.ones(1), np.full(1, self.axial_stretch)).value[0]  # (the reference is at rest)
         return float(stored_energy.assemble(self.basis, e=scale * (psi.value - rest)))
 
     def force(self, d: np.ndarray) -> np.ndarray:
         """∇W(d)."""
         psi, slope, _, scale = self._state(d)
-        return internal_force.assemble(self.basis, a=scale * psi.d_theta / self.radius, b=scale * psi.d_z * slope)
+        return internal_force.assemble(self.basis, a=scale * psi.d_theta * self.hoop / self.radius,
+                                       b=scale * psi.d_z * slope)
 
     def tangent(self, d: np.ndarray) -> sp.csr_matrix:
         """∇²W(d)."""
         psi, slope, curvature, scale = self._state(d)
-        R = self.radius
+        R = self.radius / self.hoop  # the reference's radius R + D
         return sp.csr_matrix(internal_tangent.assemble(
             self.basis, A=scale * psi.d_theta_theta / R**2, B=scale * psi.d_theta_z * slope / R,
             C=scale * (psi.d_z_z * slope * slope + psi.d_z * curvature)))
@@ -152,6 +167,26 @@ class HyperelasticMembrane(ThinLayer):
         return attrs.evolve(rest, mass=sp.csr_matrix(self.density * self.thickness / self.axial_stretch * ops.mass),
                             damping=ops.combine(self.D0, self.D1, 0.0), stiffness=rest.tangent(np.zeros(space.ndofs)))
 
+    def forms_on_reference(self, space: LineSpace, reference: np.ndarray) -> MembraneForms:
+        """The forms of the membrane whose unloaded line is r = R + D(z) (``reference`` = D on the line), its
+        points at their z: the stretches λθ = (R + η)/(R + D) and λz = λz0 √(1 + η_z²)/√(1 + D_z²) (the axial
+        prestretch λz0 as given), Ψ per unit area of that line, ((R + D)/R)ᵏ √(1 + D_z²) of the mesh's; the
+        mass ρh/λz0 over it too.  At the pinned ends (held in their place) D is the nearest other point's: the
+        reference line runs on to the ends as it does inside, rather than folding back to the mesh's place in
+        the end cell."""
+        R = space.radius
+        D = space.basis.interpolate(_ends_as_neighbours(space, reference))
+        base = R + np.asarray(D)
+        if not np.all(base > 0.0):
+            raise ValueError("the stress-free line closes the channel (R + D ≤ 0)")
+        meridian = np.sqrt(1.0 + D.grad[0] ** 2)
+        area = (base / R) ** space.geometry.radial_power * meridian
+        rest = self.forms(space)
+        ref = attrs.evolve(rest, hoop=R / base, meridian=meridian, area=area)
+        mass = sp.csr_matrix(weighted_mass.assemble(space.basis, weight=self.density * self.thickness
+                                                     / self.axial_stretch * area))
+        return attrs.evolve(ref, mass=mass, stiffness=ref.tangent(np.zeros(space.ndofs)))
+
     def rest_coefficients(self, radius: float) -> tuple[float, float]:
         """(C0, C1) of the linear thin layer the membrane is at rest on a line of radius ``radius`` (cm):
         h Ψ_θθ(1, λz0)/(λz0 R²) (dyn/cm³) and h Ψ_z(1, λz0) (dyn/cm)."""
@@ -164,6 +199,17 @@ class HyperelasticMembrane(ThinLayer):
         if radius is None:
             raise ValueError("the membrane takes its line's radius: pass radius= to long_wave_stiffness")
         return self.rest_coefficients(radius)[0]
+
+
+def _ends_as_neighbours(space: LineSpace, reference: np.ndarray) -> np.ndarray:
+    """``reference`` (on the line) with its value at each end DOF replaced by the nearest other DOF's."""
+    D = np.array(reference, dtype=float)
+    ends = space.end_dofs
+    inner = np.setdiff1d(np.arange(space.ndofs), ends)
+    if inner.size:
+        z = space.z
+        D[ends] = D[inner[np.argmin(np.abs(z[inner][None, :] - z[ends][:, None]), axis=1)]]
+    return D
 
 
 def inflation_pressure(layer: HyperelasticMembrane, radius: float, stretch_theta: float, radial_power: int = 1) -> float:
