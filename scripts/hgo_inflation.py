@@ -1,5 +1,5 @@
 """The inflation of an incompressible thick-walled tube of hyperelastic layers: inner radius against pressure
-(theory §1, "Inflation of a hyperelastic tube").  The reference of ``tests/test_hyperelastic_inflation.py``.
+(docs/theory-wall.md, "Inflation of a hyperelastic tube").  The reference of ``tests/test_hyperelastic_inflation.py``.
 
     python scripts/hgo_inflation.py [--stretch 1.0 1.5] [--pressures 0 2 4 ... 20]
 

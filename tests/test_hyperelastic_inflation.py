@@ -1,6 +1,6 @@
 """The inflation of the rabbit carotid of Holzapfel, Gasser & Ogden (2000) by two ``hgo`` bands (media, adventitia)
 in a tube, ends sliding, at the axial stretches λ_z = 1 and 1.5, against the incompressible semi-analytic solution
-of ``scripts/hgo_inflation.py`` (theory §1, "Inflation of a hyperelastic tube"): the script against the
+of ``scripts/hgo_inflation.py`` (docs/theory-wall.md, "Inflation of a hyperelastic tube"): the script against the
 neo-Hookean closed form, the inner radius against the pressure from 0 to 20 kPa, and the error's fall with the
 mesh (no volumetric locking)."""
 
@@ -30,7 +30,7 @@ BULK = 3.0e8
 PRESSURES = np.arange(0.0, 20.1, 2.0)
 STEPS = np.concatenate([np.arange(0.0, 2.0, 0.1), np.arange(2.0, 20.01, 0.25)])
 #: the static solves' tolerance: the round-off floor of a band at κ = 3·10⁸ dyn/cm² on these cells is 1e-11 to
-#: 4e-10 (theory §1, "Mean dilatation")
+#: 4e-10 (docs/theory-wall.md, "Mean dilatation")
 TOLERANCE = 1e-9
 
 

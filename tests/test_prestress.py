@@ -43,7 +43,7 @@ def test_the_hgo_tube_loaded_from_its_reference_to_p0_sits_on_the_mesh(lz):
     R_i = 0.71 mm under 80 mmHg: from its stress-free reference (d = D, the reference at the axial stretch
     λ_z) loaded to P⁰ in steps, the wall returns to the mesh within 1e-8 of |D|; the reference's inner radius
     inflates under P⁰ to the imaged one by the incompressible solution within 2 % (the bands' dilatation at
-    κ = 10³ c moves it by 1.4 %, theory §1, "Inflation of a hyperelastic tube").
+    κ = 10³ c moves it by 1.4 %, docs/theory-wall.md, "Inflation of a hyperelastic tube").
 
     Measured: |d|/|D| = 2.7e-10 (λ_z = 1), 2.9e-11 (1.5); r_i(P⁰) of the reference 0.07084 and 0.07005 cm.
     """

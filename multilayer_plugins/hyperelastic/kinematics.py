@@ -89,7 +89,7 @@ class BandKinematics:
 
     def referenced(self, D: np.ndarray) -> BandKinematics:
         """The kinematics of the band whose reference is the mesh moved by ``D`` (global numbering), stretched
-        back by λ_z (theory §1, "A prestressed wall"): F = (I + ∇d)(I + ∇D)⁻¹ Λ, with Λ the axial stretch, so
+        back by λ_z (docs/theory-wall.md, "A prestressed wall"): F = (I + ∇d)(I + ∇D)⁻¹ Λ, with Λ the axial stretch, so
         that at d = D the band is its reference stretched by λ_z alone; the reference volumes are the mesh's over
         det((I + ∇D)⁻¹ Λ).
 

@@ -1,5 +1,5 @@
 """Strain energies of nearly incompressible hyperelastic walls, in invariants, with their first and second
-derivatives with respect to the deformation gradient (theory §1, "Hyperelastic bands").
+derivatives with respect to the deformation gradient (docs/theory-wall.md, "Hyperelastic bands").
 
 The wall's deformation gradient, on the meridian plane (z, r) with the hoop direction θ, has five entries
 
