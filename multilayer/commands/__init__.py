@@ -47,8 +47,10 @@ def _command(argv: Sequence[str] | None, signals: CommandSignals) -> int:
     except (KeyboardInterrupt, Terminated) as exc:
         return _stopped_by(signal_name(exc), signals)
     except Exception:
-        if signals.received:  # the signal's exception, turned into another on its way: an extension module whose
-            return _stopped_by(signals.received[0], signals)  # import it stopped raises "ImportError: initialization failed"
+        # the signal's exception, turned into another on its way: an extension module (Cython, Pythran) whose
+        # import it stopped raises "ImportError: initialization failed" instead
+        if signals.received:
+            return _stopped_by(signals.received[0], signals)
         raise
     if signals.received:  # its exception was swallowed on the way (an ``except BaseException`` that did not raise)
         return _stopped_by(signals.received[0], signals)
