@@ -20,7 +20,7 @@ import json
 import sys
 from pathlib import Path
 
-from multilayer.campaign.accuracy import cost_to_target, observed_orders
+from multilayer.campaign.accuracy import cost_cell, cost_to_target, observed_orders
 
 TARGETS = (0.05, 0.01)
 
@@ -91,13 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                     for target in TARGETS]
     base = table.get(baseline)
     for c, got in table.items():
-        cells = []
-        for g in got:
-            if g["wall_time_s"] is None:
-                cells.append("not reached")
-            else:
-                cells.append(f"{g['wall_time_s']:.3g}" + (f" (estimated, p = {g['order']:.2f})"
-                                                            if g["how"] == "estimated" else ""))
+        cells = [cost_cell(g) for g in got]
         ratio = ""
         if base and base[1]["wall_time_s"] and got[1]["wall_time_s"]:
             ratio = f"{base[1]['wall_time_s'] / got[1]['wall_time_s']:.3g}× faster"

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from multilayer.campaign.accuracy import cost_to_target, observed_orders
+from multilayer.campaign.accuracy import cost_cell, cost_to_target, observed_orders
 from multilayer.campaign.run_tables import (
     centreline_changes,
     dt_cell,
@@ -470,13 +470,7 @@ def orders_tables(study: Study, out: Path) -> list[str]:
     base = next(iter(costs.values()), None)
     cost_rows = []
     for group, got in costs.items():
-        cells = []
-        for g in got:
-            if g["wall_time_s"] is None:
-                cells.append("not reached")
-            else:
-                cells.append(f"{g['wall_time_s']:.3g}" + (f" (estimated, p = {g['order']:.2f})"
-                                                            if g["how"] == "estimated" else ""))
+        cells = [cost_cell(g) for g in got]
         ratio = (f"{base[1]['wall_time_s'] / got[1]['wall_time_s']:.3g}×"
                  if base and base[1]["wall_time_s"] and got[1]["wall_time_s"] else "—")
         cost_rows.append([group, *cells, ratio])

@@ -280,3 +280,17 @@ def cost_to_target(wall: Sequence[float], error: Sequence[float], target: float,
         return {"how": "estimated", "wall_time_s": wall[finest] * (error[finest] / target) ** (1.0 / order),
                 "run": finest, "order": order}
     return {"how": "not reached", "wall_time_s": None, "run": None, "order": None}
+
+
+def cost_cell(cost: dict[str, Any]) -> str:
+    """A :func:`cost_to_target` result as a table cell: the wall time (s), marked when estimated.
+
+    >>> cost_cell(cost_to_target([1.0, 2.0], [0.2, 0.1], 0.1)), cost_cell({"wall_time_s": None})
+    ('2', 'not reached')
+    >>> cost_cell(cost_to_target([1.0, 2.0, 4.0], [0.2, 0.1, 0.05], 0.0125, finest=2, order=2.0))
+    '8 (estimated, p = 2.00)'
+    """
+    if cost["wall_time_s"] is None:
+        return "not reached"
+    return f"{cost['wall_time_s']:.3g}" + (f" (estimated, p = {cost['order']:.2f})"
+                                           if cost["how"] == "estimated" else "")
