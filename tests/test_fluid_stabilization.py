@@ -146,6 +146,29 @@ def test_bad_stabilization_parameters_are_refused():
         NavierStokes(RHO, MU, grad_div=-1.0)
 
 
+def tau_m(dt, supg_dt=None, scheme="backward-euler"):
+    """τ_M at the quadrature points of a Navier–Stokes step of ``dt`` from rest in a dilated channel."""
+    fluid = NavierStokes(RHO, MU, supg_dt=supg_dt)
+    setup_fluid(fluid, 2.0, 0.5, nz=4, nr=3)
+    state = fluid.initial_state(lambda z, r: (60.0 * (0.25 - r**2), 0 * r))
+    still = Domain.still(fluid.line.ndofs)
+    return fluid.system([state, state], still, named(scheme), dt, (0.0, dt)).stabilized.tau_m
+
+
+def test_supg_dt_sets_tau_m_on_every_longer_step_and_leaves_shorter_ones_their_own():
+    """``supg_dt`` = Δt_τ: τ_M's rate is max(ϱ, 1/Δt_τ), so every step longer than Δt_τ solves one stabilized
+    problem (an adaptive run's estimate then sees all the error that changes with the step), a shorter one keeps
+    its own τ_M (τ_M ϱ ≤ ½), and without it each step has its own."""
+    at = tau_m(1e-4)
+    for dt in (1e-3, 2e-3):
+        assert np.array_equal(tau_m(dt, supg_dt=1e-4), at)
+        assert np.all(tau_m(dt) > 5.0 * at)  # each step's own: ∝ Δt where the time term dominates
+    assert np.array_equal(tau_m(5e-5, supg_dt=1e-4), tau_m(5e-5))
+    assert np.array_equal(tau_m(1e-3, supg_dt=1e-4, scheme="bdf2"), at)  # the rate, not the scheme's Δt
+    with pytest.raises(ValueError, match="supg_dt must be > 0"):
+        NavierStokes(RHO, MU, supg_dt=0.0)
+
+
 def centreline_ratio(kind, nz, nr, Q=20.0, steps=100, dt=1e-3, L=6.0, R=0.3):
     """min and max of the centreline u_z over the mean velocity Q/(πR²) at z = 0.5 … 5.5 over the run (a rigid
     tube fed a flow rate Q from rest, BDF2), and the largest ledger residual."""

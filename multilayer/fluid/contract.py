@@ -40,6 +40,11 @@ class FluidSetup:
     already has it (the wall's lumen line); ``reuse`` when a changing matrix
     is refactorized; ``interface_block`` when the coupler's interface
     matrix fills the whole line × line block (a wall's step condensed on Γ).
+    ``smallest_step`` is the shortest step an adaptive run may take
+    (``time.dt_min``; None with fixed steps): a fluid whose discrete problem
+    depends on the step (a stabilization's parameter) holds it fixed on
+    every longer step, so that the error estimate sees all that changes
+    with the step.
     """
 
     geometry: Geometry
@@ -57,6 +62,7 @@ class FluidSetup:
     interface_block: bool = False
     #: the interface line's DOFs the wall holds at rest (its essential DOFs on the lumen): u_r = 0 there
     held: np.ndarray = attrs.field(factory=lambda: np.zeros(0, dtype=np.int64), eq=False)
+    smallest_step: float | None = None  #: adaptive steps: the shortest step (s); None with fixed steps
 
     def __attrs_post_init__(self):
         unknown = set(self.ends) - set(ENDS)

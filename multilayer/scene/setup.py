@@ -113,7 +113,8 @@ class Setup:
                     else np.zeros(0, dtype=np.int64))
             fluid.setup(FluidSetup(geometry, g.length, g.radius, m.nz, m.nr, m.order, m.grading, wall_mode,
                                    case.solver, case.reuse, line, {end: getattr(case.loads, end) for end in ENDS},
-                                   interface_block, held))
+                                   interface_block, held,
+                                   smallest_step=case.time.smallest if case.time.adaptive else None))
         setup = cls(case=case, registry=registry, geometry=geometry, layers=layers, fluid=fluid, wall=wall,
                     stack=stack, solvers=solvers)
         setup.timings["assembly"] += time.perf_counter() - t0

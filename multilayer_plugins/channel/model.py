@@ -46,6 +46,9 @@ NAVIER_STOKES_PARAMS = PARAMS + (
               "or 'none' (Galerkin)"),
     Param("grad_div", "γ", "1", default=GRAD_DIV, ge=0.0,
           doc="scale γ of grad-div's cell viscosity τ_C = γ|a|h/2 under 'supg' (0: SUPG alone)"),
+    Param("supg_dt", "Δt_τ", "s", None, gt=0.0,
+          doc="the time step whose τ_M SUPG uses wherever the step is longer (default: each step its own); "
+              "set it at or below an adaptive run's steps so that every step solves one stabilized problem"),
 )
 
 
@@ -105,12 +108,13 @@ class ChannelFluid(Fluid):
                                 spec.line)
         self._discrete = FluidStep(channel, self.density, self.viscosity, self.advection, spec.wall, spec.solver,
                                    spec.reuse, spec.ends, self.backflow, spec.interface_block, spec.held,
-                                   self.stabilization(channel))
+                                   self.stabilization(channel, spec.smallest_step))
         self._shear = None
         return self._discrete
 
-    def stabilization(self, channel: Channel) -> Stabilization | None:
-        """The residual-based stabilization of the step on ``channel``: none for the Galerkin fluid."""
+    def stabilization(self, channel: Channel, smallest_step: float | None = None) -> Stabilization | None:
+        """The residual-based stabilization of the step on ``channel`` (an adaptive run's steps no shorter than
+        ``smallest_step``): none for the Galerkin fluid."""
         return None
 
     @property
@@ -304,12 +308,16 @@ class NavierStokes(ChannelFluid):
         ``"supg"`` (default) or ``"none"`` (:mod:`multilayer_plugins.channel.stabilization`).
     grad_div : float
         γ ≥ 0, the scale of grad-div's τ_C under ``"supg"`` (default :data:`GRAD_DIV`; 0: SUPG alone).
+    supg_dt : float, optional
+        Δt_τ > 0 (s): τ_M's time term is that of a step Δt_τ wherever the step is longer (default: each step's own;
+        :class:`~multilayer_plugins.channel.stabilization.Stabilization`).
     """
 
     advection = True
 
     def __init__(self, density: float, viscosity: float, ends: str = "static-pressure",
-                 backflow: float | None = None, stabilization: str = "supg", grad_div: float = GRAD_DIV):
+                 backflow: float | None = None, stabilization: str = "supg", grad_div: float = GRAD_DIV,
+                 supg_dt: float | None = None):
         super().__init__(density, viscosity)
         if ends not in END_PRESSURES:
             raise ValueError(f"fluid.ends must be one of {END_PRESSURES}, got {ends!r}")
@@ -322,20 +330,27 @@ class NavierStokes(ChannelFluid):
             raise ValueError(f"fluid stabilization must be one of {', '.join(KINDS)}, got {stabilization!r}")
         if not grad_div >= 0.0:
             raise ValueError(f"fluid grad_div must be ≥ 0, got {grad_div!r}")
+        if supg_dt is not None and not supg_dt > 0.0:
+            raise ValueError(f"fluid supg_dt must be > 0 s, got {supg_dt!r}")
         self.end_pressure = ends
         self.backflow = (1.0 if backflow is None else float(backflow)) if ends == "static-pressure" else None
         self.kind = stabilization
         self.grad_div = float(grad_div)
+        self.supg_dt = None if supg_dt is None else float(supg_dt)
 
     def __repr__(self) -> str:
         ends = "" if self.backflow is None else f", ends={self.end_pressure!r}, backflow={self.backflow!r}"
         return (f"{type(self).__name__}(density={self.density!r}, viscosity={self.viscosity!r}{ends}, "
-                f"stabilization={self.kind!r}, grad_div={self.grad_div!r})")
+                f"stabilization={self.kind!r}, grad_div={self.grad_div!r}"
+                + ("" if self.supg_dt is None else f", supg_dt={self.supg_dt!r}") + ")")
 
-    def stabilization(self, channel: Channel) -> Stabilization | None:
+    def stabilization(self, channel: Channel, smallest_step: float | None = None) -> Stabilization | None:
+        """SUPG and grad-div; τ_M that of a step ``supg_dt`` on every longer step, by default (adaptive steps) that
+        of the smallest step the run may take, so that the stabilized problem does not change with the step."""
         if self.kind == "none":
             return None
-        return Stabilization(channel, self.density, self.viscosity, self.grad_div)
+        supg_dt = self.supg_dt if self.supg_dt is not None else smallest_step
+        return Stabilization(channel, self.density, self.viscosity, self.grad_div, supg_dt)
 
 
 class Stokes(ChannelFluid):

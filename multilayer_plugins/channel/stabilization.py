@@ -130,12 +130,19 @@ class Stabilization:
         ρ_f and μ.
     grad_div : float
         γ ≥ 0, the scale of τ_C.
+    supg_dt : float, optional
+        Δt_τ > 0: τ_M's rate is max(ϱ, 1/Δt_τ) (None: ϱ, the step's own).
     """
 
-    def __init__(self, channel: Channel, density: float, viscosity: float, grad_div: float = 0.0):
+    def __init__(self, channel: Channel, density: float, viscosity: float, grad_div: float = 0.0,
+                 supg_dt: float | None = None):
         if not grad_div >= 0.0:
             raise ValueError(f"grad_div must be ≥ 0, got {grad_div!r}")
+        if supg_dt is not None and not supg_dt > 0.0:
+            raise ValueError(f"supg_dt must be > 0, got {supg_dt!r}")
         self.channel, self.density, self.viscosity, self.grad_div = channel, density, viscosity, float(grad_div)
+        #: the least rate τ_M sees (1/s): 0 by default, 1/Δt_τ with ``supg_dt``
+        self.rate_floor = 0.0 if supg_dt is None else 1.0 / supg_dt
         vb, pb = channel.velocity, channel.pressure
         self.hoops = channel.geometry.radial_power
         self.inverse = affine_inverse(vb)  # (i, k, e): ∂_x̂k = Σ_i inverse[i, k] ∂̂_i
@@ -202,7 +209,7 @@ class Stabilization:
 
     def step(self, fields: ALEFields, a: np.ndarray, mass_coefficient: float, dt: float) -> Stabilized:
         """The terms of one step: the advecting velocity ``a`` (2, e, q), the step's mass coefficient (α₀/β₀) ρ_f/Δt."""
-        tau_m, tau_c = self.parameters(fields, a, mass_coefficient / self.density)
+        tau_m, tau_c = self.parameters(fields, a, max(mass_coefficient / self.density, self.rate_floor))
         return Stabilized(self, fields, a, mass_coefficient, dt, tau_m, tau_c)
 
 
