@@ -47,7 +47,7 @@ class TimeSpec:
     output_interval: float | None = None  #: adaptive steps land on its multiples (s)
     memory: float | None = None  #: adaptive steps: the memory time W (s; None: the loads' shortest period, or end)
     control: str | None = None  #: adaptive steps: "per-step" (None) or "per-unit-step" (multilayer.coupling.clock)
-    size: str | None = None  #: adaptive steps: a field's size "so-far" (None) or over the last "memory" time
+    size: str | None = None  #: adaptive steps: a field's size "so-far" or over the last "memory" time (None: :meth:`sizing`)
 
     @property
     def adaptive(self) -> bool:
@@ -59,10 +59,20 @@ class TimeSpec:
         """How an adaptive run shares its tolerance among its steps: ``control``, by default "per-step"."""
         return self.control or "per-step"
 
-    @property
-    def sizing(self) -> str:
-        """What an adaptive run measures a field's error against: ``size``, by default "so-far"."""
-        return self.size or "so-far"
+    def sizing(self, loads: Sequence[PressureLoad]) -> str:
+        """What an adaptive run measures a field's error against: ``size``, by default "memory" when a load is
+        periodic (a cardiac cycle: its first cycle measured as the later ones) and "so-far" otherwise.
+
+        >>> from multilayer.functions.loads import ConstantPressure, SinePressure
+        >>> time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-3)
+        >>> time.sizing([ConstantPressure(1.0)]), time.sizing([SinePressure(1.0, 4.0)])
+        ('so-far', 'memory')
+        >>> attrs.evolve(time, size="so-far").sizing([SinePressure(1.0, 4.0)])
+        'so-far'
+        """
+        if self.size is not None:
+            return self.size
+        return "memory" if any(load.cycle() is not None for load in loads) else "so-far"
 
     @property
     def smallest(self) -> float:

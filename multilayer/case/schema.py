@@ -56,8 +56,8 @@ TIME = (
               "local error in proportion to its length)"),
     Param("size", type=str, default=None, choices=SIZES,
           doc="adaptive steps: the size a field's error is relative to: 'so-far' (its peak so far, its rate "
-              "counted over min(t, W); unset) or 'memory' (its size over the last span W: its rate counted over W "
-              "from the first step, its peak forgotten at the rate 1/W)"),
+              "counted over min(t, W); unset, without a periodic load) or 'memory' (its size over the last span W: "
+              "its rate counted over W from the first step, its peak forgotten at the rate 1/W; unset, with one)"),
 )
 #: the keys of [time] that only adaptive steps (time.tolerance) read
 ADAPTIVE_KEYS = ("dt_min", "dt_max", "output_interval", "memory", "control", "size")

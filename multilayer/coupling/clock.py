@@ -218,7 +218,7 @@ class Adaptive:
         self.memory = time.memory_time(self.loads)
         self.per_step = time.sharing == "per-step"
         #: a field's size over the last memory time (``time.size = "memory"``) rather than so far
-        self.over_memory = time.sizing == "memory"
+        self.over_memory = time.sizing(self.loads) == "memory"
         self.controller = Controller(scheme.order + 1, hold=True) if self.per_step else Controller(scheme.order)
         #: per step, an error that only bounds the next step (the splitting's defect, O(kₙ²) a step) has an err
         #: that goes as kₙ: a PI controller of its own, q = 1, settles it at 0.70 instead of q = 3's 0.35
@@ -451,7 +451,7 @@ def summary(record: dict[str, float] | None, case: Case) -> dict[str, object]:
     if time.tolerance is None or record is None:
         return {}
     return {"adaptive": {"tolerance": time.tolerance, "memory": time.memory_time(case.loads.histories()),
-                         "control": time.sharing, "size": time.sizing,
+                         "control": time.sharing, "size": time.sizing(case.loads.histories()),
                          "accepted": int(record["accepted"]),
                          "rejected": int(record["rejected"]),
                          "dt_range": [record["smallest"], record["largest"]],
