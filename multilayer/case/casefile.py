@@ -32,6 +32,7 @@ from multilayer.case.keys import (
 )
 from multilayer.case.model import (
     Case,
+    FoundReference,
     Geometry,
     Initial,
     LayerSpec,
@@ -42,6 +43,7 @@ from multilayer.case.model import (
     Output,
     Probe,
     TimeSpec,
+    reference_inputs,
 )
 from multilayer.case.objections import coupler_objections, coupler_problems
 from multilayer.case.partial import Unbuilt
@@ -237,8 +239,10 @@ class _Validator:
         case = Case(**parts)
         self.add(self.objections(case))
         self.add(closed_volume_problems(case, self.coupler_object, self.ends))
+        found = None  # with initial.prestress, the reference found here: the run sets up on it
         if wall_fits:
-            self.add(static_start_problems(case, self.coupler_object, shape, layers, self.built_layers))
+            problems, found = static_start_problems(case, self.coupler_object, shape, layers, self.built_layers)
+            self.add(problems)
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
             self.add(sweep_table(data["sweep"])[1])
         if self.problems:
@@ -273,7 +277,8 @@ class _Validator:
         }
         canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
         return attrs.evolve(case, resolved=resolved, digest=hashlib.sha256(canonical.encode()).hexdigest(),
-                            base_dir=str(self.base_dir.resolve()))
+                            base_dir=str(self.base_dir.resolve()),
+                            reference=None if found is None else FoundReference(*found, reference_inputs(case)))
 
     def objections(self, case: Case) -> list[Problem]:
         """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""
