@@ -163,6 +163,44 @@ def test_newton_converges_quadratically_on_a_load_step_of_the_media():
             assert after <= 10.0 * before**2, residuals
 
 
+def test_a_trial_stretch_beyond_the_fibres_range_is_cut_back_without_a_warning():
+    """A first correction 300 times too long stretches the media's fibres to k₂E² ≫ 709, where exp(k₂E²)
+    overflows: the trial state's residual is not finite, the line search halves the step, and the solve
+    converges to the equilibrium of the plain Newton iteration (to 1e-8 of it) with no RuntimeWarning raised."""
+    import warnings
+
+    layer = hgo(**{**MEDIA, "ends": "sliding"})
+    space = WallSpace.build([layer], Axisymmetric(), 0.01, 0.071, 1, 2, [4])
+    stack = Stack.assemble(space)
+    free = stack.free
+    f = 2.5e3 * space.line_load(LUMEN)
+
+    def full(x):
+        d = np.zeros(space.ndofs)
+        d[free] = x
+        return d
+
+    def residual(x):
+        internal = stack.force(full(x))
+        return (f - internal)[free], (np.abs(f) + np.abs(internal))[free]
+
+    overshoot = [300.0]
+
+    def solve(x, r):
+        delta = sp.linalg.spsolve(stack.tangent(full(x)).tocsc()[free][:, free], r)
+        return overshoot.pop() * delta if overshoot else delta
+
+    expected = dead_load_newton(stack, 2.5e3, np.zeros(space.ndofs))[0]
+    far = full(300.0 * sp.linalg.spsolve(stack.tangent(full(np.zeros(free.size))).tocsc()[free][:, free], f[free]))
+    with np.errstate(all="ignore"):
+        assert not np.all(np.isfinite(stack.force(far)))  # the trial is out of the fibres' range
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any warning fails the test
+        result = newton(residual, solve, np.zeros(free.size))
+    assert result.residuals[-1] <= 1e-11
+    assert np.abs(full(result.x) - expected).max() <= 1e-8 * np.abs(expected).max()
+
+
 def test_a_small_load_deflects_the_band_as_its_linearization():
     """At a small pressure the static deflection is K_T(0)⁻¹ f to first order: the gap falls like the load."""
     layer = neo_hookean(1.1, 0.026, 3.0e4, 3.0e7, ends="sliding")

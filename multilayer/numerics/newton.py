@@ -71,6 +71,18 @@ def relative(r: np.ndarray, size: np.ndarray) -> float:
     return norm / scale if scale > 0.0 else norm
 
 
+def at_trial(residual: Residual, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """R(x), its size and the relative residual at a trial state ``x`` (a Newton correction, one cut back, a
+    solve's start), numpy's floating-point warnings silenced: a state outside a layer's range — a fibre stretch
+    whose exp(k₂E²) overflows, an element turned inside out (J ≤ 0) — gives a residual that is not finite (nan
+    relative residual), and the caller rejects it (a shorter step, or a solve refused with its residuals); a
+    warning would say nothing more."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        r, size = residual(x)
+        finite = bool(np.all(np.isfinite(r)) and np.all(np.isfinite(size)))
+        return r, size, relative(r, size) if finite else np.nan
+
+
 def _line_search(residual: Residual, x: np.ndarray, delta: np.ndarray, r: np.ndarray,
                  current: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """x + λΔ, its residual, size and relative residual h: λ = 1 where that lowers h or ‖R‖, else halved until
@@ -87,8 +99,7 @@ def _line_search(residual: Residual, x: np.ndarray, delta: np.ndarray, r: np.nda
     step, last = 1.0, None
     for _ in range(HALVINGS + 1):
         trial = x + step * delta
-        r_trial, size = residual(trial)
-        h = relative(r_trial, size)
+        r_trial, size, h = at_trial(residual, trial)
         if np.isfinite(h):
             last = (trial, r_trial, size, h)
             norm_trial = float(np.linalg.norm(r_trial))
@@ -130,8 +141,8 @@ def newton(residual: Residual | None, solve: Solve, start: np.ndarray | None, li
         delta = solve(start, r)
         return NewtonResult(delta if start is None else start + delta, 1)
     x = start
-    r, size = residual(x)
-    history = [relative(r, size)]
+    r, size, h = at_trial(residual, x)
+    history = [h]
     iterations = 0
     while not history[-1] <= tolerance:  # (a nan residual is not converged: it fails below)
         if iterations == max_iterations or not np.isfinite(history[-1]):
@@ -151,4 +162,4 @@ def newton(residual: Residual | None, solve: Solve, start: np.ndarray | None, li
     return NewtonResult(x, iterations, tuple(history))
 
 
-__all__ = ["MAX_ITERATIONS", "TOLERANCE", "NewtonError", "NewtonResult", "newton", "relative"]
+__all__ = ["MAX_ITERATIONS", "TOLERANCE", "NewtonError", "NewtonResult", "at_trial", "newton", "relative"]
