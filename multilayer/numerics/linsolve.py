@@ -491,7 +491,8 @@ class ReusingSolver:
         """True when the held factorization is of the matrix ``key`` stands for (compared by identity)."""
         return self._factors is not None and self._matrix is key
 
-    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None, update: LowRank | None = None) -> np.ndarray:
+    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None, update: LowRank | None = None,
+              lasting: bool = False) -> np.ndarray:
         """x with A x = b: directly when the factors are A's, else by GMRES on the held ones or a fresh LU.
 
         ``key`` stands for A when A is rebuilt from data that did not change
@@ -500,6 +501,8 @@ class ReusingSolver:
         of the sparse A, GMRES takes the whole operator, and a direct solve
         with A's own factors adds the update by Woodbury's formula
         (:class:`LowRank`), so a dense low-rank term never enters a factorization.
+        With ``lasting`` A is to be solved again (the tangent a chord iteration holds): factorized at its first
+        solve rather than its second, which GMRES on older factors would only precede.
         """
         key = A if key is None else key
         if self.stats.resume is not None:  # a resumed run: the held state of the checkpoint first
@@ -512,8 +515,8 @@ class ReusingSolver:
             return self._refined(operator, b, update)
         x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
-        if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
-                and not self._stale()):
+        if (self.reuse.mode == "krylov" and not again and not lasting and self._factors is not None
+                and A.shape == self._shape and not self._stale()):
             result = self._gmres(operator, b, guess=True)
             x = result.x
             if x is not None:
