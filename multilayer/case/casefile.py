@@ -32,7 +32,6 @@ from multilayer.case.keys import (
 )
 from multilayer.case.model import (
     Case,
-    FoundReference,
     Geometry,
     Initial,
     LayerSpec,
@@ -43,7 +42,6 @@ from multilayer.case.model import (
     Output,
     Probe,
     TimeSpec,
-    reference_inputs,
 )
 from multilayer.case.objections import coupler_objections, coupler_problems
 from multilayer.case.partial import Unbuilt
@@ -239,10 +237,9 @@ class _Validator:
         case = Case(**parts)
         self.add(self.objections(case))
         self.add(closed_volume_problems(case, self.coupler_object, self.ends))
-        found = None  # with initial.prestress, the reference found here: the run sets up on it
-        if wall_fits:
-            problems, found = static_start_problems(case, self.coupler_object, shape, layers, self.built_layers)
-            self.add(problems)
+        problems, found = (static_start_problems(case, self.coupler_object, shape, layers, self.built_layers)
+                           if wall_fits else ([], None))  # found: with initial.prestress, the run's reference
+        self.add(problems)
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
             self.add(sweep_table(data["sweep"])[1])
         if self.problems:
@@ -277,8 +274,7 @@ class _Validator:
         }
         canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
         return attrs.evolve(case, resolved=resolved, digest=hashlib.sha256(canonical.encode()).hexdigest(),
-                            base_dir=str(self.base_dir.resolve()),
-                            reference=None if found is None else FoundReference(*found, reference_inputs(case)))
+                            base_dir=str(self.base_dir.resolve()), reference=found)
 
     def objections(self, case: Case) -> list[Problem]:
         """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""

@@ -16,9 +16,16 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import attrs
 import numpy as np
 
-from multilayer.case.model import Initial, LayerSpec, Limits
+from multilayer.case.model import (
+    FoundReference,
+    Initial,
+    LayerSpec,
+    Limits,
+    reference_inputs,
+)
 from multilayer.case.partial import NotBuilt
 from multilayer.geometry.contract import Geometry as Shape
 from multilayer.numerics.linsolve import SolverStats
@@ -60,7 +67,7 @@ def layer_problems(layers: Sequence[LayerSpec], built: Mapping[str, Any], shape:
 
 
 def static_start_problems(case: Any, coupler: Any, shape: Shape, layers: Sequence[LayerSpec],
-                          built: Mapping[str, Any]) -> tuple[list[Problem], Found | None]:
+                          built: Mapping[str, Any]) -> tuple[list[Problem], FoundReference | None]:
     """With ``initial.pressure``, the static start solved on the case's wall as the run solves it and weighed
     against the channel (:func:`deflection_problems`); with ``initial.prestress``, the stress-free reference
     found (:func:`prestress_problems`), and returned for the run to set up on (None: not found, or no prestress).
@@ -82,7 +89,11 @@ def static_start_problems(case: Any, coupler: Any, shape: Shape, layers: Sequenc
     except (NotBuilt, LayerError):
         return [], None
     if case.initial.prestress:
-        return prestress_problems(case.initial.pressure, external, stack)
+        problems, found = prestress_problems(case.initial.pressure, external, stack)
+        try:  # with what it was found from (a part not built: the case is refused for its own problems)
+            return problems, None if found is None else FoundReference(*found, reference_inputs(case))
+        except NotBuilt:
+            return problems, None
     return deflection_problems(case.initial.pressure, external, stack, case.limits), None
 
 
@@ -102,7 +113,7 @@ def prestress_problems(pressure: float, external: float, stack: Stack) -> tuple[
     except LayerError as exc:
         return [Problem("initial.prestress", True, f"a layer fails on the stress-free reference: {exc}",
                         "a smaller initial.pressure, or leave initial.prestress out")], None
-    return [], (found.reference, stats)
+    return [], (found.reference, attrs.evolve(stats, backends={}))  # its counts, not the solvers' objects
 
 
 def deflection_problems(pressure: float, external: float, stack: Stack, limits: Any) -> list[Problem]:

@@ -495,14 +495,12 @@ class ReusingSolver:
               lasting: bool = False) -> np.ndarray:
         """x with A x = b: directly when the factors are A's, else by GMRES on the held ones or a fresh LU.
 
-        ``key`` stands for A when A is rebuilt from data that did not change
-        (e.g. the token of the system it is a block of); by default A itself.
-        With ``update`` the system is (A + U Wᵀ) x = b: the factors are always
-        of the sparse A, GMRES takes the whole operator, and a direct solve
-        with A's own factors adds the update by Woodbury's formula
-        (:class:`LowRank`), so a dense low-rank term never enters a factorization.
-        With ``lasting`` A is to be solved again (the tangent a chord iteration holds): factorized at its first
-        solve rather than its second, which GMRES on older factors would only precede.
+        ``key`` stands for A when A is rebuilt from data that did not change (e.g. the token of the system it
+        is a block of); by default A itself.  With ``update`` the system is (A + U Wᵀ) x = b: the factors are
+        always of the sparse A, GMRES takes the whole operator, and a direct solve with A's own factors adds
+        the update by Woodbury's formula (:class:`LowRank`), so a dense low-rank term never enters a
+        factorization.  A ``lasting`` A is to be solved again (a chord iteration's held tangent): factorized
+        at its first solve, not after a GMRES one.
         """
         key = A if key is None else key
         if self.stats.resume is not None:  # a resumed run: the held state of the checkpoint first
