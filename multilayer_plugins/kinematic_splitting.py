@@ -71,6 +71,7 @@ from multilayer.coupling.kit import (
 )
 from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.fluid.contract import Domain, Interface
+from multilayer.numerics.newton import CHORD
 from multilayer.numerics.stepsize import local_error
 from multilayer.numerics.timescheme import TimeScheme, scheme_param
 from multilayer.plugin.hookspecs import hookimpl
@@ -185,7 +186,7 @@ class KinematicSplitting(Coupler):
         fluid, wall = setup.fluid, setup.wall
         adaptive = setup.case.time.adaptive
         structure = StructureStep(setup.stack, self.scheme, setup.dt, setup.stats("wall"), setup.case.solver,
-                                  fluid_line=LUMEN, reuse=setup.case.reuse)
+                                  fluid_line=LUMEN, reuse=setup.case.reuse, chord=CHORD)
         P, R = wall.prolongations[LUMEN], wall.restrictions[LUMEN]
         masses = {i: lumen_mass(setup, i) for i in lumen_layers(setup)}
         # per Δt the Robin matrix, the same object every step (its slots are looked up once), and with the

@@ -52,7 +52,7 @@ from multilayer.coupling.kit import (
 from multilayer.coupling.structure import StructureStep, wall_energy
 from multilayer.numerics.assembly.pattern import Pattern
 from multilayer.numerics.linsolve import LowRank, ReusingSolver
-from multilayer.numerics.newton import newton
+from multilayer.numerics.newton import CHORD, newton
 from multilayer.numerics.timescheme import scheme_param
 from multilayer.plugin.hookspecs import hookimpl
 from multilayer.plugin.records import CouplerPlugin
@@ -173,11 +173,15 @@ class Monolithic(ThickLumen, Coupler):
                     return r[held["layout"].free], size[held["layout"].free]
 
                 def solve(free_x, r):
-                    layout, data, update = matrix(free_x)
-                    return solver.solve(layout.free_free.matrix(data, keep=True), r, update=update)
+                    out = matrix(free_x)
+                    layout, data, update = out
+                    # (``out`` stands for the matrix: one held by the chord iteration is solved again, its own
+                    # factorization taken at its second solve)
+                    return solver.solve(layout.free_free.matrix(data, keep=True), r, key=out, update=update,
+                                        lasting=CHORD is not None)
 
                 result = newton(residual, solve, np.zeros(layout.free.size), stats=solver.stats,
-                                what="the monolithic system")
+                                what="the monolithic system", chord=CHORD)
             x = unknowns(result.x)
             # each part takes back its share of the solution
             solution = fluid.advance(system, x[: fluid.ndofs])

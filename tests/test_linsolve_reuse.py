@@ -156,6 +156,19 @@ def test_a_matrix_solved_again_is_factorized_once_for_its_further_solves():
     assert stats.krylov_solves == 1 and stats.factorizations == 2
 
 
+def test_a_lasting_matrix_is_factorized_at_its_first_solve():
+    """A matrix to be solved again (a chord iteration's held tangent) is not first solved by GMRES on older factors:
+    its own factorization serves every solve."""
+    stats = SolverStats()
+    solver = ReusingSolver(stats, "superlu", Reuse())
+    first, second = drifting_matrices(steps=2)
+    solver.solve(first, np.ones(400))
+    for k in range(3):
+        x = solver.solve(second, np.full(400, k + 1.0), key="held", lasting=True)
+        assert np.linalg.norm(second @ x - (k + 1.0)) <= 1e-12 * np.sqrt(400) * (k + 1.0)
+    assert stats.krylov_solves == 0 and stats.factorizations == 2
+
+
 def test_the_guess_saves_iterations_and_changes_no_answer(monkeypatch):
     """Matrices and right-hand sides drifting smoothly: GMRES started from the span of the solutions gains fewer
     orders than from M⁻¹b, and both reach the tolerance (the answers agree to it)."""

@@ -141,9 +141,57 @@ def test_a_run_started_prestressed_does_not_move_under_p0_and_closes_its_ledger(
     assert summary["energy"]["max_relative_residual"] <= 1e-9
 
 
+def counting(monkeypatch) -> list[float]:
+    """The pressures at which the stress-free reference is found from here on (validation's and the setup's
+    calls of the fixed point)."""
+    import multilayer.wall.prestress as module
+
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[1])
+        return module.prestress(*args, **kwargs)
+
+    monkeypatch.setattr("multilayer.case.trial_walls.prestress", counted)
+    monkeypatch.setattr("multilayer.scene.setup.prestress", counted)
+    return calls
+
+
+def test_the_reference_validation_found_is_the_one_the_run_sets_up_on(tmp_path, monkeypatch):
+    """Validation finds the reference and the run's setup takes it (``Case.reference``): found once.  The setup
+    on it is the one a setup finding the reference itself builds, bit for bit; the setup of a case changed since
+    validation finds its own.  An hgo-membrane tube (the fixed point in a second)."""
+    import attrs
+
+    from multilayer.coupling.build import prepare
+
+    calls = counting(monkeypatch)
+    data = {**copy.deepcopy(TUBE), "mesh": {"nz": 8, "nr": 2, "order": 2},
+            "layers": [{"model": "hgo-membrane", "density": 1.06, "thickness": 0.03, "c": 3.0e5, "k1": 2.4e5,
+                        "k2": 0.8, "angle": 40.0}]}
+    case = validate_data(data, tmp_path, REGISTRY)
+    assert calls == [P0] and case.reference is not None
+    setup = prepare(case, REGISTRY)[0]
+    assert calls == [P0]
+    assert setup.solvers["static"] == case.reference.stats and setup.solvers["static"] is not case.reference.stats
+    own = prepare(attrs.evolve(case, reference=None), REGISTRY)[0]  # found by the setup
+    assert calls == [P0, P0]
+    zero = np.zeros(setup.stack.space.ndofs)
+    assert np.array_equal(own.stack.force(zero), setup.stack.force(zero))
+    assert (own.stack.tangent(zero) != setup.stack.tangent(zero)).nnz == 0
+    assert own.solvers["static"].factorizations == setup.solvers["static"].factorizations > 0
+    changed = attrs.evolve(case, initial=attrs.evolve(case.initial, pressure=0.9 * P0))
+    prepare(changed, REGISTRY)
+    assert calls == [P0, P0, 0.9 * P0]
+    layers = attrs.evolve(case, layers=(attrs.evolve(case.layers[0], params={**case.layers[0].params, "c": 4e5}),))
+    assert not case.reference.serves(layers) and case.reference.serves(attrs.evolve(case, title="another"))
+
+
 @pytest.mark.slow
-def test_a_prestressed_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path):
-    """The reference is found again, deterministically, on resume: the resumed run writes the same bytes."""
+def test_a_prestressed_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path, monkeypatch):
+    """The reference is found once by a run and once by its resume, deterministically: the resumed run writes
+    the same bytes."""
+    calls = counting(monkeypatch)
     case = tmp_path / "tube.toml"
     data = {**copy.deepcopy(TUBE), "loads": {"inlet": f"{P0} + 2.0e4*sin(pi*t/2e-3)", "outlet": P0},
             "time": {"end": 1e-3, "dt": 2.5e-4}}
@@ -155,7 +203,9 @@ def test_a_prestressed_run_resumed_from_its_checkpoint_is_bit_identical(tmp_path
 
     assert main(argv(tmp_path / "full", 1e-3)) == 0
     assert main(argv(tmp_path / "half", 5e-4)) == 0
+    assert len(calls) == 2
     assert main(["resume", str(tmp_path / "half"), "--until", "1e-3", "--quiet", "--no-plots"]) == 0
+    assert len(calls) == 3
     assert (tmp_path / "full" / "series.csv").read_bytes() == (tmp_path / "half" / "series.csv").read_bytes()
 
 

@@ -62,8 +62,8 @@ def test_the_wave_speed_rises_with_pressure_as_bramwell_hill_says(tmp_path):
 
     Measured (24 × 2 cells): 80 mmHg 603.7 cm/s foot to foot, Bramwell–Hill 590.4 (+2.2 %); 120 mmHg 788.9
     against 766.5 (+2.9 %); at 80 mmHg on 32 × 2 cells 602.1 against 592.5 (+1.6 %): the excess falls with the
-    mesh along z.  About 5 minutes (the reference is found three times a pressure: validation, the run, the
-    static curve)."""
+    mesh along z.  The reference is found once a pressure, by validation: the run and the static curve take it
+    from the case."""
     found = {mmhg: speeds(tmp_path, mmhg) for mmhg in (80.0, 120.0)}
     for mmhg, (measured, bramwell_hill) in found.items():
         print(f"{mmhg:g} mmHg: foot to foot {measured:.1f} cm/s, Bramwell–Hill {bramwell_hill:.1f} cm/s "

@@ -237,8 +237,9 @@ class _Validator:
         case = Case(**parts)
         self.add(self.objections(case))
         self.add(closed_volume_problems(case, self.coupler_object, self.ends))
-        if wall_fits:
-            self.add(static_start_problems(case, self.coupler_object, shape, layers, self.built_layers))
+        problems, found = (static_start_problems(case, self.coupler_object, shape, layers, self.built_layers)
+                           if wall_fits else ([], None))  # found: with initial.prestress, the run's reference
+        self.add(problems)
         if "sweep" in data:  # checked here; only ``multilayer sweep`` runs it, and it is no part of the case
             self.add(sweep_table(data["sweep"])[1])
         if self.problems:
@@ -273,7 +274,7 @@ class _Validator:
         }
         canonical = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
         return attrs.evolve(case, resolved=resolved, digest=hashlib.sha256(canonical.encode()).hexdigest(),
-                            base_dir=str(self.base_dir.resolve()))
+                            base_dir=str(self.base_dir.resolve()), reference=found)
 
     def objections(self, case: Case) -> list[Problem]:
         """The coupler's reasons against ``case``, when it was built and the parts it reads were too."""

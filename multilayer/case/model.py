@@ -10,11 +10,12 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import attrs
+import numpy as np
 
 from multilayer.boundary.contract import BoundaryCondition
 from multilayer.functions.formula import Formula
 from multilayer.functions.loads import PressureLoad
-from multilayer.numerics.linsolve import Reuse
+from multilayer.numerics.linsolve import Reuse, SolverStats
 
 
 @attrs.frozen
@@ -200,6 +201,35 @@ class Limits:
     volume_margin: float = 0.05  #: |Σ volume residual|, as a fraction of the volume moved
 
 
+@attrs.frozen(eq=False)
+class FoundReference:
+    """With ``[initial] prestress``, the stress-free reference of the finite-strain layers that validation found
+    on the case's wall (:func:`multilayer.wall.prestress.prestress`), handed to the run's setup so that it is
+    found once: the displacement D of the reference from the mesh (wall numbering), the counters of the static
+    solves that found it, and what it was found from (:func:`reference_inputs`)."""
+
+    displacement: np.ndarray
+    stats: SolverStats
+    inputs: tuple
+
+    def serves(self, case: Case) -> bool:
+        """Whether the reference is the one of ``case``'s wall: a case changed since validation (``attrs.evolve``
+        of its layers, mesh, pressure, ...) has its own, found again."""
+        return self.inputs == reference_inputs(case)
+
+
+def reference_inputs(case: Case) -> tuple:
+    """What the stress-free reference of ``case``'s wall depends on, comparable with ``==``: the geometry, the mesh
+    along z, the layers (models, parameters, cells), the coupler (the lines it holds radially), whether a fluid
+    pins the lumen's ends, ``initial.pressure`` and the external pressure at t = 0 (a spec's ``params`` take no
+    part in its own equality: they are compared here)."""
+    g = case.geometry
+    return ((g.model, g.length, g.radius, dict(g.params)), (case.mesh.nz, case.mesh.order),
+            tuple((spec.model, dict(spec.params), spec.cells) for spec in case.layers),
+            (case.coupler.model, dict(case.coupler.params)), case.fluid is not None, case.initial.pressure,
+            case.loads.external.value(0.0))
+
+
 @attrs.frozen
 class Case:
     title: str
@@ -227,3 +257,5 @@ class Case:
     #: what validation found odd but not wrong, one line each: a plain number implausible in its key's CGS unit
     #: (``layers[1].young = 400: did you mean 400 kPa = 4e+06 dyn/cm²? ...``; :mod:`multilayer.plugin.units`)
     warnings: tuple[str, ...] = attrs.field(default=(), eq=False)
+    #: with ``[initial] prestress``, the reference validation found for the wall (None: the setup finds it)
+    reference: FoundReference | None = attrs.field(default=None, eq=False, repr=False)

@@ -16,11 +16,19 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import attrs
 import numpy as np
 
-from multilayer.case.model import Initial, LayerSpec, Limits
+from multilayer.case.model import (
+    FoundReference,
+    Initial,
+    LayerSpec,
+    Limits,
+    reference_inputs,
+)
 from multilayer.case.partial import NotBuilt
 from multilayer.geometry.contract import Geometry as Shape
+from multilayer.numerics.linsolve import SolverStats
 from multilayer.numerics.newton import NewtonError
 from multilayer.plugin.problems import MISSING, Problem
 from multilayer.wall import probe
@@ -39,6 +47,8 @@ SMALL_DEFLECTION = 0.25
 #: what a deflection far beyond the bound most often means
 UNITS = ("check that the layers' moduli and initial.pressure are in dyn/cm² (1 kPa = 1e4 dyn/cm², "
          "1 mmHg = 1333.2 dyn/cm²)")
+#: a stress-free reference found: its displacement D from the mesh (wall numbering) and its static solves' counters
+Found = tuple[np.ndarray, SolverStats]
 
 
 def layer_problems(layers: Sequence[LayerSpec], built: Mapping[str, Any], shape: Shape,
@@ -57,9 +67,10 @@ def layer_problems(layers: Sequence[LayerSpec], built: Mapping[str, Any], shape:
 
 
 def static_start_problems(case: Any, coupler: Any, shape: Shape, layers: Sequence[LayerSpec],
-                          built: Mapping[str, Any]) -> list[Problem]:
+                          built: Mapping[str, Any]) -> tuple[list[Problem], FoundReference | None]:
     """With ``initial.pressure``, the static start solved on the case's wall as the run solves it and weighed
-    against the channel (:func:`deflection_problems`).
+    against the channel (:func:`deflection_problems`); with ``initial.prestress``, the stress-free reference
+    found (:func:`prestress_problems`), and returned for the run to set up on (None: not found, or no prestress).
 
     ``case`` may have placeholders (:mod:`multilayer.case.partial`); ``coupler`` is the coupler object (None:
     it could not be built), ``built`` the layer objects by key path.  Nothing is solved unless the coupler says
@@ -68,7 +79,7 @@ def static_start_problems(case: Any, coupler: Any, shape: Shape, layers: Sequenc
     """
     radial_lines = getattr(coupler, "radial_lines", None)  # (a coupler is known by its energy and evolve alone)
     if not isinstance(case.initial, Initial) or case.initial.pressure is None or radial_lines is None:
-        return []
+        return [], None
     try:
         g, m, external = case.geometry, case.mesh, case.loads.external.value(0.0)
         objects = [built[layer.path] for layer in layers]
@@ -76,27 +87,33 @@ def static_start_problems(case: Any, coupler: Any, shape: Shape, layers: Sequenc
                                 [layer.model for layer in layers])
         stack = Stack.assemble(space, radial_lines(case), fluid_pinned_lines(objects, case.fluid is not None))
     except (NotBuilt, LayerError):
-        return []
+        return [], None
     if case.initial.prestress:
-        return prestress_problems(case.initial.pressure, external, stack)
-    return deflection_problems(case.initial.pressure, external, stack, case.limits)
+        problems, found = prestress_problems(case.initial.pressure, external, stack)
+        try:  # with what it was found from (a part not built: the case is refused for its own problems)
+            return problems, None if found is None else FoundReference(*found, reference_inputs(case))
+        except NotBuilt:
+            return problems, None
+    return deflection_problems(case.initial.pressure, external, stack, case.limits), None
 
 
-def prestress_problems(pressure: float, external: float, stack: Stack) -> list[Problem]:
-    """With ``initial.prestress``, the stress-free reference the run finds (:func:`~multilayer.wall.prestress.prestress`),
-    found here: refused at ``initial.prestress`` when the wall has no finite-strain layer, when the fixed point
-    does not converge (its iterations and the last out-of-balance force said), or when a layer fails on it.
-    The wall sits on the mesh, so there is no deflection to weigh."""
+def prestress_problems(pressure: float, external: float, stack: Stack) -> tuple[list[Problem], Found | None]:
+    """With ``initial.prestress``, the stress-free reference the run sets up on (:func:`~multilayer.wall.prestress.prestress`),
+    found here once (returned with the counters of its static solves, None when refused): refused at
+    ``initial.prestress`` when the wall has no finite-strain layer, when the fixed point does not converge (its
+    iterations and the last out-of-balance force said), or when a layer fails on it.  The wall sits on the mesh,
+    so there is no deflection to weigh."""
+    stats = SolverStats()
     try:
-        prestress(stack, pressure, external)
+        found = prestress(stack, pressure, external, stats)
     except PrestressError as exc:
         return [Problem("initial.prestress", True, f"the wall imaged at initial.pressure = {pressure:g} dyn/cm²: "
                         f"{exc}", "a smaller initial.pressure (the wall's imaged geometry may be beyond what its "
-                        "layers hold), or leave initial.prestress out")]
+                        "layers hold), or leave initial.prestress out")], None
     except LayerError as exc:
         return [Problem("initial.prestress", True, f"a layer fails on the stress-free reference: {exc}",
-                        "a smaller initial.pressure, or leave initial.prestress out")]
-    return []
+                        "a smaller initial.pressure, or leave initial.prestress out")], None
+    return [], (found.reference, attrs.evolve(stats, backends={}))  # its counts, not the solvers' objects
 
 
 def deflection_problems(pressure: float, external: float, stack: Stack, limits: Any) -> list[Problem]:

@@ -120,7 +120,8 @@ def run_or_resume(case: Case | None, out: Path, registry: Registry, *, quiet: bo
             saved = checkpoint.load(out, registry, until)
             bar = progress.ProgressBar(saved.case.time.end, saved.tally.t, enabled=None if not quiet else False,
                                        step=saved.tally.steps)
-            result = loop.resume_run(out, until, registry, checkpoint_every=checkpoint_every, progress=bar)
+            result = loop.resume_run(out, until, registry, checkpoint_every=checkpoint_every, progress=bar,
+                                     saved=saved)
     except (ResultsError, CheckpointError) as exc:
         print(f"{'run' if case is not None else 'resume'}: {exc}", file=sys.stderr)
         return INVALID

@@ -91,14 +91,20 @@ class StructureStep:
         (0 in a partitioned coupled run), or None when no fluid updates it.
     reuse : Reuse
         How a nonlinear wall's Newton corrections reuse factorizations (``[solver] reuse``).
+    chord : float or None
+        A nonlinear wall's Newton iteration holds its tangent while each correction lowers the residual by this
+        factor (:func:`~multilayer.numerics.newton.newton`'s ``chord``); None: Newton's own, a tangent each
+        correction.
     """
 
     def __init__(self, stack: Stack, scheme: TimeScheme, dt: float, stats: SolverStats,
-                 backend: str = "superlu", fluid_line: int | None = None, reuse: Reuse = Reuse()):
+                 backend: str = "superlu", fluid_line: int | None = None, reuse: Reuse = Reuse(),
+                 chord: float | None = None):
         self.stack = stack
         self.scheme = scheme
         self.dt = dt
         self.fluid_line = fluid_line
+        self.chord = chord
         self._stats, self._backend, self._reuse = stats, backend, reuse
         # what the steps of every scheme :meth:`using` this one share: the factors of the last matrix and its key
         # (factorized at the first step: a monolithic solve uses only matrix() and rhs()), a nonlinear wall's
@@ -157,13 +163,19 @@ class StructureStep:
                 r, size = self.residual(states, forces, self._full(x), dt)
                 return r[free], size[free]
 
-            def solve(x, r):
-                J, update = self.jacobian(states, self._full(x), dt)
-                if update is not None:
-                    update = LowRank(update.U[free], update.W[free])
-                return self._nonlinear_solver().solve(J[free][:, free], r, update=update)
+            held: list = []  # the tangent on the free DOFs, the iterate it is at and its low-rank part
 
-            result = newton(residual, solve, np.zeros(free.size), stats=self._stats)
+            def solve(x, r):
+                if not (held and np.array_equal(held[0][0], x)):
+                    J, update = self.jacobian(states, self._full(x), dt)
+                    if update is not None:
+                        update = LowRank(update.U[free], update.W[free])
+                    held[:] = [(x.copy(), J[free][:, free], update)]
+                tangent = held[0]  # (it stands for its matrix: a held one is factorized at its second solve)
+                return self._nonlinear_solver().solve(tangent[1], r, key=tangent, update=tangent[2],
+                                                      lasting=self.chord is not None)
+
+            result = newton(residual, solve, np.zeros(free.size), stats=self._stats, chord=self.chord)
         return self.finish(states, self._full(result.x), forces, dt, result)
 
     def _full(self, x: np.ndarray) -> np.ndarray:

@@ -491,15 +491,16 @@ class ReusingSolver:
         """True when the held factorization is of the matrix ``key`` stands for (compared by identity)."""
         return self._factors is not None and self._matrix is key
 
-    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None, update: LowRank | None = None) -> np.ndarray:
+    def solve(self, A: sp.spmatrix, b: np.ndarray, key=None, update: LowRank | None = None,
+              lasting: bool = False) -> np.ndarray:
         """x with A x = b: directly when the factors are A's, else by GMRES on the held ones or a fresh LU.
 
-        ``key`` stands for A when A is rebuilt from data that did not change
-        (e.g. the token of the system it is a block of); by default A itself.
-        With ``update`` the system is (A + U Wᵀ) x = b: the factors are always
-        of the sparse A, GMRES takes the whole operator, and a direct solve
-        with A's own factors adds the update by Woodbury's formula
-        (:class:`LowRank`), so a dense low-rank term never enters a factorization.
+        ``key`` stands for A when A is rebuilt from data that did not change (e.g. the token of the system it
+        is a block of); by default A itself.  With ``update`` the system is (A + U Wᵀ) x = b: the factors are
+        always of the sparse A, GMRES takes the whole operator, and a direct solve with A's own factors adds
+        the update by Woodbury's formula (:class:`LowRank`), so a dense low-rank term never enters a
+        factorization.  A ``lasting`` A is to be solved again (a chord iteration's held tangent): factorized
+        at its first solve, not after a GMRES one.
         """
         key = A if key is None else key
         if self.stats.resume is not None:  # a resumed run: the held state of the checkpoint first
@@ -512,8 +513,8 @@ class ReusingSolver:
             return self._refined(operator, b, update)
         x = None
         # a matrix solved a second time (a sub-iterated coupler) is worth its own factorization
-        if (self.reuse.mode == "krylov" and not again and self._factors is not None and A.shape == self._shape
-                and not self._stale()):
+        if (self.reuse.mode == "krylov" and not again and not lasting and self._factors is not None
+                and A.shape == self._shape and not self._stale()):
             result = self._gmres(operator, b, guess=True)
             x = result.x
             if x is not None:

@@ -227,7 +227,8 @@ def run_held(case: Case, registry: Registry | None = None, *,
 
 def resume_run(out: str | Path, until: float | None = None, registry: Registry | None = None, *,
                checkpoint_every: int | None = None,
-               progress: Callable[[Tally, dict], None] | None = None) -> RunResult:
+               progress: Callable[[Tally, dict], None] | None = None,
+               saved: checkpoint.Checkpoint | None = None) -> RunResult:
     """Continue the run of the results folder ``out`` from its checkpoint (to ``until`` s if given).
 
     The state and every reusing solver's held state are rebuilt from the
@@ -235,10 +236,14 @@ def resume_run(out: str | Path, until: float | None = None, registry: Registry |
     run resumed from step n writes the same files, bit for bit, as one never stopped.
     Raises :class:`checkpoint.CheckpointError` when there is no usable
     checkpoint (before the folder is touched), or the plugins or the case
-    differ from the checkpoint's.
+    differ from the checkpoint's.  ``saved``: the checkpoint as
+    :func:`checkpoint.load` read it (for ``out`` and ``until``) when the caller
+    has read it already, so that its case is validated once (a prestressed
+    wall's reference found once).
     """
     registry = registry or Registry.load()
-    saved = checkpoint.load(Path(out), registry, until)
+    if saved is None:
+        saved = checkpoint.load(Path(out), registry, until)
     every = saved.checkpoint_every if checkpoint_every is None else checkpoint_every
     with interruptible() as signals, blas_threads(getattr(saved.case, "threads", 1)):
         try:

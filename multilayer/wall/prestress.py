@@ -42,7 +42,7 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator, gmres
 
 from multilayer.numerics.linsolve import SolverStats, factorize
-from multilayer.numerics.newton import TOLERANCE, NewtonError, relative
+from multilayer.numerics.newton import TOLERANCE, NewtonError, at_trial, relative
 from multilayer.wall.checks import LayerError
 from multilayer.wall.equilibrium import (
     Unsettled,
@@ -110,8 +110,8 @@ class Prestress:
 def imbalance(stack: Stack, pressure: float, external: float) -> float:
     """‖f − f_int(0)‖ / ‖size of its terms‖ on the free DOFs: how far the mesh's state (d = 0) is from the
     equilibrium under the lumen pressure ``pressure`` and the outer ``external`` (dyn/cm²)."""
-    r, size = out_of_balance(stack, _loads(stack, pressure, external), np.zeros(stack.free.size))
-    return relative(r, size)
+    f = _loads(stack, pressure, external)
+    return at_trial(lambda x: out_of_balance(stack, f, x), np.zeros(stack.free.size))[2]  # nan: out of range
 
 
 def prestress(stack: Stack, pressure: float, external: float, stats: SolverStats | None = None,
@@ -236,9 +236,9 @@ def _newton_step(stack: Stack, current: Stack, D: np.ndarray, f: np.ndarray,
         except LayerError:  # a reference that folds: a shorter step
             delta = 0.5 * delta
             continue
-        r, size = out_of_balance(moved, f, zero[free])
-        if relative(r, size) < before:
-            return trial, moved, float(np.max(np.abs(delta))), relative(r, size)
+        _, _, h = at_trial(lambda x: out_of_balance(moved, f, x), zero[free])  # (nan out of the layers' range)
+        if h < before:
+            return trial, moved, float(np.max(np.abs(delta))), h
         delta = 0.5 * delta
     return D, current, 0.0, before
 

@@ -54,7 +54,7 @@ class HyperelasticForms(NonlinearForms):
                 return state
         kin = self.kinematics
         strain = Strain.of(kin.gradient(d), self.law.beta)
-        V = np.asarray(kin.groups.sum(axis=1)).ravel()
+        V = kin.volumes
         state = strain, (kin.groups @ strain.J1.ravel()) / V, V
         kept.insert(0, (np.array(d, copy=True), state))
         del kept[3:]  # a Crank–Nicolson correction's three: d^{n+1}, the midpoint, dⁿ
@@ -63,7 +63,7 @@ class HyperelasticForms(NonlinearForms):
     def _pressure(self, Jbar1: np.ndarray) -> np.ndarray:
         """m_q = Σ_g S_gq U'(J̄_g): each point's weighted share of the groups' pressures."""
         _, U1, _ = self.volumetric.derivatives(Jbar1)
-        return (self.kinematics.groups.T @ U1).reshape(self.kinematics.weights.shape)
+        return (self.kinematics.groups_t @ U1).reshape(self.kinematics.weights.shape)
 
     def elastic(self, d: np.ndarray) -> float:
         """W(d) = Σ_q w_q Ψ_iso + Σ_g V_g U(J̄_g)."""
@@ -82,13 +82,23 @@ class HyperelasticForms(NonlinearForms):
         self._last["stress"] = (np.array(d, copy=True), stress)
         return stress
 
+    def _local_forces(self, d: np.ndarray) -> np.ndarray:
+        """The elements' forces (elements, local DOFs) at ``d`` (the last d's kept: a residual takes the force and
+        its size at one d)."""
+        last = self._last.get("local")
+        if last is not None and np.array_equal(last[0], d):
+            return last[1]
+        local = self.kinematics.local_vector(self._stress(d))
+        self._last["local"] = (np.array(d, copy=True), local)
+        return local
+
     def force(self, d: np.ndarray) -> np.ndarray:
         """∇W(d)."""
-        return self.kinematics.vector(self._stress(d))
+        return self.kinematics.scatter(self._local_forces(d))
 
     def force_size(self, d: np.ndarray) -> np.ndarray:
         """The magnitudes of the elements' forces, summed: a prestressed band's (λ_z ≠ 1) cancel at every DOF."""
-        return self.kinematics.vector(self._stress(d), size=True)
+        return self.kinematics.scatter(np.abs(self._local_forces(d)))
 
     def tangent(self, d: np.ndarray) -> sp.csr_matrix:
         """∇²W(d)."""

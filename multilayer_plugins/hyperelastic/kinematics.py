@@ -41,8 +41,12 @@ class BandKinematics:
     groups: sp.csr_matrix  #: S (groups × elements·points): the weights of each point in each group's dilatation
     per_element: bool  #: the groups are the elements (group e is element e)
     pattern: tuple = attrs.field(init=False)  #: (indices, indptr, where each element entry adds) of the matrix
+    groups_t: sp.csr_matrix = attrs.field(init=False)  #: Sᵀ (points × groups), formed once: m = Sᵀ U'(J̄)
+    volumes: np.ndarray = attrs.field(init=False)  #: V = S 1, the groups' volumes
 
     def __attrs_post_init__(self):
+        object.__setattr__(self, "groups_t", self.groups.T.tocsr())
+        object.__setattr__(self, "volumes", np.asarray(self.groups.sum(axis=1)).ravel())
         nloc, E = self.dofs.shape
         rows = np.broadcast_to(self.dofs.T[:, :, None], (E, nloc, nloc)).ravel()
         cols = np.broadcast_to(self.dofs.T[:, None, :], (E, nloc, nloc)).ravel()
@@ -127,11 +131,9 @@ class BandKinematics:
         """Σ_q P : ∂F/∂d per element (E, local DOFs), from the weighted first derivatives ``P`` (5, E, Q)."""
         return np.einsum("eqia,ieq->ea", self.B, P, optimize=True)
 
-    def vector(self, P: np.ndarray, size: bool = False) -> np.ndarray:
-        """:meth:`local_vector` assembled into the global vector; with ``size`` the elements' vectors' magnitudes
-        summed instead (what the sum's round-off is relative to)."""
-        local = self.local_vector(P)
-        local = np.abs(local) if size else local
+    def scatter(self, local: np.ndarray) -> np.ndarray:
+        """The element vectors ``local`` (elements, local DOFs; :meth:`local_vector`'s, or their magnitudes: what
+        a sum's round-off is relative to) summed into the global vector."""
         return np.bincount(self.dofs.T.ravel(), weights=local.ravel(), minlength=self.ndofs)
 
     def local_matrix(self, A: np.ndarray) -> np.ndarray:

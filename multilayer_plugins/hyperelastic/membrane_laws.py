@@ -72,17 +72,22 @@ def hgo_fibre(E: np.ndarray, k1: float, k2: float) -> Energy:
     >>> e = hgo_fibre(np.array([-0.1, 0.0, 0.1]), 2.0, 0.0)
     >>> e.value.round(12).tolist(), e.first.round(12).tolist(), e.second.tolist()
     ([0.0, 0.0, 0.01], [0.0, 0.0, 0.2], [0.0, 2.0, 2.0])
+    >>> hgo_fibre(np.array([30.0]), 2.0, 1.0).value.tolist()  # exp(900): beyond float range, no warning
+    [inf]
     """
     E = np.asarray(E, dtype=float)
     active = E >= 0.0
     E = np.where(active, E, 0.0)
     x = k2 * E * E
-    growth = np.exp(x)
-    # k1/(2k2) expm1(k2E²) = k1E²/2 · expm1(x)/x, finite as k2 → 0
-    ratio = np.where(x > 0.0, np.expm1(x) / np.where(x > 0.0, x, 1.0), 1.0)
-    value = 0.5 * k1 * E * E * ratio
-    first = k1 * E * growth
-    second = np.where(active, k1 * growth * (1.0 + 2.0 * x), 0.0)
+    # beyond exp's range (k₂E² > 709, a trial state far out) W, W' and W'' are inf, without a warning: the solve
+    # that tried the state rejects it (multilayer.numerics.newton.at_trial)
+    with np.errstate(over="ignore", invalid="ignore"):
+        growth = np.exp(x)
+        # k1/(2k2) expm1(k2E²) = k1E²/2 · expm1(x)/x, finite as k2 → 0
+        ratio = np.where(x > 0.0, np.expm1(x) / np.where(x > 0.0, x, 1.0), 1.0)
+        value = 0.5 * k1 * E * E * ratio
+        first = k1 * E * growth
+        second = np.where(active, k1 * growth * (1.0 + 2.0 * x), 0.0)
     return Energy(value, first, second)
 
 
