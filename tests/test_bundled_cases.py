@@ -117,8 +117,8 @@ def test_aortic_inflow_puts_its_stroke_volume_in_and_the_pressure_follows(tmp_pa
 def test_artery_hgo_starts_in_equilibrium_under_its_diastolic_pressure(tmp_path):
     """``cases/artery-hgo.toml`` held at its 80 mmHg at both ends, no flow, 4 steps: the prestressed wall keeps
     its imaged geometry (measured: peak |η| 4.2e-15 cm), the fluid stays at rest (|Q| ≤ 2.2e-11 mL/s).  Most
-    of its time is the stress-free reference, found at validation and again by the run (about 35 s each
-    here, alone on the machine less)."""
+    of its time is the stress-free reference, found at validation and again by the run (71 s of CPU in all,
+    measured with `multilayer run` and the same settings)."""
     code, summary, rows = run("artery-hgo", tmp_path, "time.end=2e-3", "loads.inlet=1.0666e5", "loads.outlet=1.0666e5")
     assert code == 0 and summary["status"] == "ok"
     assert summary["steps"] == 4 and summary["energy"]["max_relative_residual"] < 1e-10
