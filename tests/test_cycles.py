@@ -144,7 +144,11 @@ def test_the_carotid_over_two_beats_gives_its_cycle_summaries_and_wall_shear(tmp
     res = read_results(tmp_path)
     assert res.cycles == beats and res.period == 1.0 and res.wall_shear == wss
     assert res.wss_lumen[2].shape == (2000, 21) and np.array_equal(res.wss_lumen[0], res.eta_lumen[0])
-    assert {p.name for p in plot_run(tmp_path)} >= {"wss.png", "cycles.png"}
+    # the pulse-wave velocity foot to foot between p_in, p_mid and p_out, of a carotid's order (4–10 m/s); its loop
+    speed = beats[1]["pulse_wave_velocity"]
+    assert speed["value"] is not None and 4.0 < speed["m_s"] < 10.0, speed
+    assert list(speed["feet"]) == ["p_in", "p_mid", "p_out"]
+    assert {p.name for p in plot_run(tmp_path)} >= {"wss.png", "cycles.png", "pressure_diameter.png", "pulse_wave.png"}
     assert json.loads((tmp_path / "summary.json").read_text())["cycles"] == block
     # the run's closing lines: the last beat, its pressures in mmHg, its stroke volume and its change
     assert result.cycles == block
@@ -153,6 +157,7 @@ def test_the_carotid_over_two_beats_gives_its_cycle_summaries_and_wall_shear(tmp
     assert line.startswith("  cycle 2 (1–2 s): p_in ") and "end.outlet" not in line, line
     assert f"p_out {p['systolic_mmHg']:.4g}/{p['diastolic_mmHg']:.4g} (mean {p['mean_mmHg']:.4g}) mmHg" in line
     assert f"stroke volume {beats[1]['stroke_volume']:.4g} mL" in line
+    assert f"; pulse-wave velocity {speed['m_s']:.3g} m/s (foot to foot); " in line
     assert line.endswith(f"within {100 * beats[1]['max_change']:.2g} % of cycle 1"), line
 
 
@@ -170,3 +175,57 @@ def test_a_run_in_memory_has_the_same_cycles_and_wall_shear_as_its_folder(tmp_pa
     assert all(np.array_equal(a, b) for a, b in zip(held.wss_lumen, saved.wss_lumen))
     inlet = held.cycles[2]["pressure"]["end.inlet.p"]  # the inlet's pressure: the step means of the sine
     assert inlet["mean"] == pytest.approx(1e3, rel=1e-12) and inlet["pulse"] == pytest.approx(4e3, rel=0.05)
+
+
+def travelling(t, z, c, period=1.0):
+    """A periodic pulse running downstream at c (cm/s): at each beat a half sine from 0.1 s after its start at
+    z = 0, 0.3 s long, on 80 mmHg; the foot at z is 0.1 + z/c into the beat."""
+    s = np.mod(t - z / c, period)
+    return (80.0 + 40.0 * np.maximum(0.0, np.sin(np.pi * (s - 0.1) / 0.3)) * (s > 0.1)) * MMHG
+
+
+@pytest.mark.parametrize("dt", (1e-3, 5e-4))
+def test_the_pulse_wave_velocity_of_a_travelling_pulse_is_its_speed(dt):
+    """Foot to foot between three pressures of a pulse p(t − z/c) over three beats gives c in every beat: to
+    round-off where the transit times are whole steps (c = 500 cm/s, probes 2 cm apart, Δt = 1 and 0.5 ms), and
+    within a tolerance that falls with Δt where they are not (c = 600 cm/s: transits of 3.33 ms; the tangents'
+    feet, through the rows' secants).
+
+    Measured (last beat): c = 600 within 5.1e-6 (Δt = 1 ms) and 6.3e-7 (0.5 ms) relatively."""
+    t = np.arange(1, round(3.0 / dt) + 1) * dt
+    for c, tolerance in ((500.0, 1e-9), (600.0, 1e-5 * (dt / 1e-3) ** 2)):
+        waves = {f"p_{z:g}": (z, travelling(t, z, c)) for z in (1.0, 3.0, 5.0)}
+        beats = cycles.summarize(t, 1.0, waves, waves=waves)
+        for beat in beats:
+            speed = beat["pulse_wave_velocity"]
+            assert speed["value"] == pytest.approx(c, rel=tolerance), (c, dt, speed)
+            assert speed["m_s"] == pytest.approx(speed["value"] / 100.0, rel=1e-15)
+            for z in (1.0, 3.0, 5.0):  # the foot 0.1 s into the beat at z = 0, then z/c later
+                foot = speed["feet"][f"p_{z:g}"]
+                assert foot["z"] == z and foot["time"] == pytest.approx(beat["start"] + 0.1 + z / c, abs=0.05 * dt)
+    print(f"Δt = {dt:g}: c = 600 within {abs(beats[-1]['pulse_wave_velocity']['value'] / 600.0 - 1):.2g}")
+
+
+def test_no_pulse_wave_velocity_without_a_foot_and_its_reason():
+    """A pressure that does not rise at one probe leaves one foot: no speed, and the reason says which."""
+    t = np.arange(1, 2001) * 1e-3
+    waves = {"p_1": (1.0, travelling(t, 1.0, 500.0)), "p_3": (3.0, np.full_like(t, 80.0 * MMHG))}
+    speed = cycles.summarize(t, 1.0, waves, waves=waves)[-1]["pulse_wave_velocity"]
+    assert speed["value"] is None and speed["m_s"] is None
+    assert "fewer than two probes with a foot" in speed["reason"] and "p_3" in speed["reason"]
+    assert speed["feet"]["p_3"]["time"] is None
+
+
+def test_a_pressure_diameter_loop_returns_its_extremes_in_mmhg_and_mm():
+    """p = 100 + 20 sin ωt mmHg, η = 0.01 sin(ωt − 0.3) cm at R = 0.3 cm, 200 rows a beat (the extremes on rows):
+    the loop over the second beat runs 80 to 120 mmHg and 5.8 to 6.2 mm, and lags (an open loop)."""
+    t = np.arange(1, 401) * 0.01
+    w = 2 * np.pi
+    p, eta = (100 + 20 * np.sin(w * t)) * MMHG, 0.01 * np.sin(w * t - 0.3)
+    loop = cycles.pressure_diameter(t, p, eta, 0.3, 1.0, 2.0, 1.0)
+    assert len(loop["pressure"]) == len(loop["diameter"]) == 100
+    assert loop["pressure_min"] == pytest.approx(80.0, rel=1e-12) and loop["pressure_max"] == pytest.approx(120.0)
+    assert loop["diameter_min"] == pytest.approx(5.8, rel=1e-3) and loop["diameter_max"] == pytest.approx(6.2, rel=1e-3)
+    # the loop's area ∮ p dD ≠ 0: diameter and pressure are out of phase
+    area = np.sum(0.5 * (loop["pressure"][1:] + loop["pressure"][:-1]) * np.diff(loop["diameter"]))
+    assert abs(area) > 1.0

@@ -16,9 +16,10 @@ From them, per complete cycle (:func:`summarize`): each pressure's systolic
 in dyn/cm² and mmHg; the stroke volume ∫ Q_in dt (the inflow through the
 inlet); at each lumen position the distensibility
 (A_max − A_min)/(A_min · pulse pressure), A the lumen's section there and the
-pulse pressure that of the pressure nearest in z; and each quantity's
-relative change from the cycle before, which goes to zero as the run
-becomes periodic.
+pulse pressure that of the pressure nearest in z; the pulse-wave velocity
+foot to foot between the pressure probes (:func:`multilayer.results.pulse.foot_to_foot`
+on the cycle's rows); and each quantity's relative change from the cycle
+before, which goes to zero as the run becomes periodic.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from multilayer.plugin.units import MMHG
+from multilayer.results.pulse import foot_to_foot
 from multilayer.results.reading import without_nan
 
 
@@ -99,7 +101,7 @@ def nearest(z: float, places: Mapping[str, float]) -> str | None:
 
 def summarize(t: np.ndarray, period: float, pressures: Mapping[str, tuple[float, np.ndarray]],
               inflow: np.ndarray | None = None, areas: Mapping[str, tuple[float, np.ndarray]] | None = None,
-              start: float = 0.0) -> list[dict]:
+              start: float = 0.0, waves: Mapping[str, tuple[float, np.ndarray]] | None = None) -> list[dict]:
     """The summary of every complete cycle of the series, in order.
 
     Parameters
@@ -114,6 +116,9 @@ def summarize(t: np.ndarray, period: float, pressures: Mapping[str, tuple[float,
         The flow rate into the vessel through its inlet, per row (cm³/s, or cm²/s per unit depth).
     areas : mapping, optional
         name → (z, A per row): the lumen's section at a position (cm², or cm per unit depth).
+    waves : mapping, optional
+        name → (z, series per row): the probes whose feet give the pulse-wave velocity (the pressures at
+        points along the vessel).
 
     Returns
     -------
@@ -121,7 +126,7 @@ def summarize(t: np.ndarray, period: float, pressures: Mapping[str, tuple[float,
         Per cycle ``index``, ``start``, ``end``; ``pressure`` (name → :func:`pressure_stats` and ``z``);
         ``stroke_volume`` (∫ inflow dt) with an inflow; ``distensibility`` (name → ``z``, ``area_max``,
         ``area_min``, ``pressure`` (the nearest pressure's name), ``pulse_pressure``, ``value`` in cm²/dyn
-        and ``per_mmHg``); from the second cycle on ``change`` (quantity → relative change from the cycle
+        and ``per_mmHg``); with ``waves``, ``pulse_wave_velocity`` (:func:`wave_velocity`); from the second cycle on ``change`` (quantity → relative change from the cycle
         before) and ``max_change`` (the largest in size).  A value that cannot be formed is None.
     """
     t = np.asarray(t, dtype=float)
@@ -160,6 +165,8 @@ def summarize(t: np.ndarray, period: float, pressures: Mapping[str, tuple[float,
                                              "pulse_pressure": pulse, "value": value, "per_mmHg": value * MMHG}
             values[f"distensibility.{name}"] = value
             now_scales[f"distensibility.{name}"] = abs(value)
+        if waves:
+            cycle["pulse_wave_velocity"] = wave_velocity(t, waves, a, b, period)
         if out:
             cycle["change"] = {key: _relative(v, previous.get(key, math.nan), scales.get(key, math.nan))
                                for key, v in values.items()}
@@ -168,6 +175,44 @@ def summarize(t: np.ndarray, period: float, pressures: Mapping[str, tuple[float,
         previous, scales = values, now_scales
         out.append(without_nan(cycle))
     return out
+
+
+def wave_velocity(t: np.ndarray, waves: Mapping[str, tuple[float, np.ndarray]], a: float, b: float,
+                  period: float) -> dict:
+    """The pulse-wave velocity over the cycle [a, b], foot to foot between the ``waves`` (name → (z, series)):
+    ``value`` (cm/s) and ``m_s`` (m/s), or None and the ``reason``; ``feet``, each probe's foot time (s, None
+    where it has none) and ``z``.
+
+    >>> t = np.arange(1, 2001) * 1e-3
+    >>> pulse = lambda z: np.maximum(0.0, np.sin(2 * np.pi * (t - z / 500.0 - 0.1))) ** 2    # c = 5 m/s
+    >>> found = wave_velocity(t, {"p_1": (1.0, pulse(1.0)), "p_3": (3.0, pulse(3.0))}, 1.0, 2.0, 1.0)
+    >>> feet = [f["time"] for f in found["feet"].values()]
+    >>> round(found["m_s"], 6), round(feet[1] - feet[0], 9)      # 2 cm in 4 ms
+    (5.0, 0.004)
+    """
+    rows = inside(t, a, b, period)
+    speed, feet = foot_to_foot([(name, z, t[rows], np.asarray(y, dtype=float)[rows]) for name, (z, y) in waves.items()])
+    return {"value": speed.value, "m_s": None if speed.value is None else speed.value / 100.0,
+            "reason": speed.reason, "feet": {name: {"z": z, "time": feet[name].time} for name, (z, _) in waves.items()}}
+
+
+def pressure_diameter(t: np.ndarray, pressure: np.ndarray, eta: np.ndarray, radius: float, a: float, b: float,
+                      period: float) -> dict:
+    """The pressure–diameter loop of a tube over the cycle [a, b] at one place: ``pressure`` (mmHg) and
+    ``diameter`` 2(R + η) (mm) on the cycle's rows, and their extremes ``pressure_min``/``_max``,
+    ``diameter_min``/``_max``.
+
+    >>> t = np.arange(1, 201) * 0.01
+    >>> p = (100 + 20 * np.sin(2 * np.pi * t)) * MMHG
+    >>> loop = pressure_diameter(t, p, 0.01 * np.sin(2 * np.pi * t - 0.3), 0.3, 1.0, 2.0, 1.0)
+    >>> [round(loop[k], 4) for k in ("pressure_min", "pressure_max", "diameter_min", "diameter_max")]
+    [80.0, 120.0, 5.8, 6.2]
+    """
+    rows = inside(t, a, b, period)
+    p = np.asarray(pressure, dtype=float)[rows] / MMHG
+    diameter = 20.0 * (radius + np.asarray(eta, dtype=float)[rows])  # cm to mm
+    return {"pressure": p, "diameter": diameter, "pressure_min": float(p.min()), "pressure_max": float(p.max()),
+            "diameter_min": float(diameter.min()), "diameter_max": float(diameter.max())}
 
 
 def _relative(now: float, before: float, scale: float) -> float:
@@ -202,6 +247,9 @@ def last_cycle_line(block: Mapping | None) -> str | None:
     last = done[-1]
     parts = [f"{name} {p['systolic_mmHg']:.4g}/{p['diastolic_mmHg']:.4g} (mean {p['mean_mmHg']:.4g}) mmHg"
              for name, p in last.get("pressure", {}).items() if "systolic_mmHg" in p and not name.startswith("end.")]
+    speed = last.get("pulse_wave_velocity") or {}
+    if speed.get("m_s") is not None:
+        parts.append(f"pulse-wave velocity {speed['m_s']:.3g} m/s (foot to foot)")
     if "stroke_volume" in last:
         parts.append(f"stroke volume {last['stroke_volume']:.4g} {block.get('units', {}).get('stroke_volume', '')}".rstrip())
     if "max_change" in last:

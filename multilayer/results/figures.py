@@ -7,7 +7,11 @@
 * ``wss.png`` — the wall shear stress τ_w(z, t) (from ``wss_lumen.csv``) and, under a periodic load, TAWSS and
   OSI along the lumen over the last complete cycle (``summary.json`` ``wss``);
 * ``cycles.png`` — under a periodic load, every pressure over each complete cycle, overlaid (mmHg), and the
-  largest relative change of the cycle summaries from one cycle to the next (``summary.json`` ``cycles``).
+  largest relative change of the cycle summaries from one cycle to the next (``summary.json`` ``cycles``);
+* ``pressure_diameter.png`` — in a tube under a periodic load, the pressure against the lumen's diameter
+  over the last complete cycle (mmHg, mm), one loop for every place with a ``p`` and an ``eta`` probe;
+* ``pulse_wave.png`` — under a periodic load, the pressures over the last complete cycle with each one's
+  foot, and the pulse-wave velocity foot to foot between them (``summary.json`` ``cycles``).
 
 Made to be shown on a slide: fonts of 12 pt and more (:data:`SLIDE`), titles
 wrapped to the figure's width rather than cut, a unit on every axis, and the
@@ -37,7 +41,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from multilayer.plugin.units import MMHG
-from multilayer.results.cycles import inside
+from multilayer.results.cycles import inside, pressure_diameter
 from multilayer.results.files import atomic_file
 from multilayer.results.folder import may_write
 from multilayer.results.reading import lumen_eta, lumen_wss, read_run
@@ -135,6 +139,13 @@ def plot_run(folder: Path | str) -> list[Path]:
     if isinstance(block, Mapping) and block.get("cycles") and len(run.t) and may_write(folder, "cycles.png"):
         plot_cycles(run, block, folder / "cycles.png")
         written.append(folder / "cycles.png")
+        loops = pressure_diameter_loops(run, block) if radius is not None else []
+        if loops and may_write(folder, "pressure_diameter.png"):
+            plot_pressure_diameter(loops, block["cycles"][-1], folder / "pressure_diameter.png")
+            written.append(folder / "pressure_diameter.png")
+        if block["cycles"][-1].get("pulse_wave_velocity") and may_write(folder, "pulse_wave.png"):
+            plot_pulse_wave(run, block, folder / "pulse_wave.png")
+            written.append(folder / "pulse_wave.png")
     return written
 
 
@@ -317,3 +328,69 @@ def plot_cycles(run, block: Mapping, path: Path) -> None:
                      fontsize="medium")
         ax.grid(alpha=0.3)
     save_figure(fig, path)
+
+
+def pressure_diameter_loops(run, block: Mapping) -> list[dict]:
+    """The pressure–diameter loop (:func:`~multilayer.results.cycles.pressure_diameter`) over the last complete
+    cycle of ``block`` at every place with a ``p`` probe and an ``eta`` probe on the lumen (the first of each
+    at that z), with ``z`` and the two probes' names; none but in a tube (its diameter is 2(R + η))."""
+    if _units(run).get("flow_rate") != TUBE_FLOW:
+        return []
+    cycle, radius = block["cycles"][-1], run.case["geometry"]["radius"]
+    out = []
+    for p in run.probes:
+        eta = next((e for e in run.probes if e["quantity"] == "eta" and not e.get("line") and e["z"] == p["z"]),
+                   None)
+        if p["quantity"] != "p" or eta is None or any(loop["z"] == p["z"] for loop in out):
+            continue
+        loop = pressure_diameter(run.t, run.series[p["name"]], run.series[eta["name"]], radius, cycle["start"],
+                                 cycle["end"], block["period"])
+        out.append({"z": p["z"], "pressure_probe": p["name"], "eta_probe": eta["name"], **loop})
+    return out
+
+
+def plot_pressure_diameter(loops: list[dict], cycle: Mapping, path: Path) -> Figure:
+    """The pressure (mmHg) against the lumen's diameter (mm) over ``cycle``, one loop per place (``loops``,
+    :func:`pressure_diameter_loops`), each with its distension in the legend; returns the figure."""
+    with slide_style():
+        fig = Figure(figsize=(8, 6), layout="constrained")
+        ax = fig.subplots()
+        for loop in loops:
+            change = loop["diameter_max"] / loop["diameter_min"] - 1.0
+            ax.plot(loop["diameter"], loop["pressure"], label=f"z = {loop['z']:g} cm ({loop['pressure_probe']}, "
+                    f"{loop['eta_probe']}): ΔD/D = {change:.1%}")
+        ax.set_xlabel("lumen diameter D (mm)")
+        ax.set_ylabel("p (mmHg)")
+        ax.set_title(fit(f"pressure against diameter over the cycle {cycle['start']:g}–{cycle['end']:g} s", 7.5))
+        ax.grid(alpha=0.3)
+        ax.legend()
+        save_figure(fig, path)
+    return fig
+
+
+def plot_pulse_wave(run, block: Mapping, path: Path) -> Figure:
+    """The pressures of the last complete cycle that gave its pulse-wave velocity, each with its foot (a dot),
+    against the time into the cycle; the velocity (or why there is none) in the title; returns the figure."""
+    cycle = block["cycles"][-1]
+    speed = cycle["pulse_wave_velocity"]
+    rows = inside(run.t, cycle["start"], cycle["end"], block["period"])
+    with slide_style():
+        fig = Figure(figsize=(9, 5.5), layout="constrained")
+        ax = fig.subplots()
+        for i, (name, foot) in enumerate(speed["feet"].items()):
+            if name not in run.series:
+                continue
+            t, p = run.t[rows] - cycle["start"], run.series[name][rows] / MMHG
+            ax.plot(t, p, color=f"C{i}", label=f"{name} (z = {foot['z']:g} cm)")
+            if foot["time"] is not None:
+                at = foot["time"] - cycle["start"]
+                ax.plot([at], [np.interp(at, t, p)], "o", color=f"C{i}", ms=7)
+        label_axis(ax, "p")
+        ax.set_xlabel("time into the cycle (s)")
+        title = (f"pulse-wave velocity {speed['m_s']:.3g} m/s, foot to foot (dots: the feet)" if speed["m_s"] is not None
+                 else f"no pulse-wave velocity: {speed['reason']}")
+        ax.set_title(fit(f"{title}; cycle {cycle['start']:g}–{cycle['end']:g} s", 7.5))
+        ax.grid(alpha=0.3)
+        ax.legend(ncols=2 if len(speed["feet"]) > 3 else 1)
+        save_figure(fig, path)
+    return fig

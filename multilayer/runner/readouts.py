@@ -5,8 +5,8 @@ Both are computed once the run has stopped, from the tables it wrote
 before its checkpoint count too) by the pure functions of
 :mod:`multilayer.results.cycles` and :mod:`multilayer.results.shear`.  This
 module only gathers their inputs from the case: the loads' period, which
-columns are pressures and where, the inflow, the lumen's section at the
-``eta`` probes.
+columns are pressures and where (their feet give the pulse-wave velocity), the
+inflow, the lumen's section at the ``eta`` probes.
 """
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ def cycle_block(case: Case, setup: Setup, series: dict[str, np.ndarray]) -> dict
     if period is None or "t" not in series:
         return None
     pressures = {p.name: (p.z, series[p.name]) for p in case.output.probes if p.quantity == "p" and p.name in series}
+    # the pulse-wave velocity from the pressure probes' feet (not the ends' step means), at two places or more
+    waves = dict(pressures) if len({z for z, _ in pressures.values()}) > 1 else None
     for end, z in zip(END_PRESSURES, (0.0, case.geometry.length)):
         if f"end.{end}.p" in series:
             pressures[f"end.{end}.p"] = (z, series[f"end.{end}.p"])
@@ -51,8 +53,10 @@ def cycle_block(case: Case, setup: Setup, series: dict[str, np.ndarray]) -> dict
                  if p.quantity == "eta" and p.line == LUMEN and p.name in series}
     volume = setup.geometry.integral_units["flow_rate"].removesuffix("/s")
     units = {"pressure": "dyn/cm² (and mmHg)", "stroke_volume": "mL" if volume == "cm³" else f"{volume} per unit depth",
-             "area": "cm²" if volume == "cm³" else "cm per unit depth", "distensibility": "cm²/dyn (and 1/mmHg)"}
-    return {"period": period, "units": units, "cycles": cycles.summarize(series["t"], period, pressures, inflow, areas)}
+             "area": "cm²" if volume == "cm³" else "cm per unit depth", "distensibility": "cm²/dyn (and 1/mmHg)",
+             "pulse_wave_velocity": "cm/s (and m/s)"}
+    return {"period": period, "units": units,
+            "cycles": cycles.summarize(series["t"], period, pressures, inflow, areas, waves=waves)}
 
 
 def readouts(case: Case, setup: Setup | None, results: ResultsFolder | HeldResults) -> dict[str, Any]:
