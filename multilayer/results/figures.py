@@ -57,17 +57,23 @@ MICRONS = 1e4
 
 
 @contextmanager
-def slide_style() -> Iterator[None]:
-    """The figures' fonts (:data:`SLIDE`), for what is drawn inside; matplotlib's font search says nothing on
-    stderr meanwhile (its fallbacks, 'findfont: Font family … not found', are no news to a user reading a run)."""
+def quiet_fonts() -> Iterator[None]:
+    """matplotlib's font search says nothing on stderr inside: its fallbacks ('findfont: Font family … not
+    found', for a log axis's mathtext as for the text) are no news to a user reading a run."""
     fonts = logging.getLogger("matplotlib.font_manager")
     level = fonts.level
     fonts.setLevel(logging.ERROR)
     try:
-        with matplotlib.rc_context(SLIDE):
-            yield
+        yield
     finally:
         fonts.setLevel(level)
+
+
+@contextmanager
+def slide_style() -> Iterator[None]:
+    """The figures' fonts (:data:`SLIDE`), for what is drawn inside, with :func:`quiet_fonts`."""
+    with quiet_fonts(), matplotlib.rc_context(SLIDE):
+        yield
 
 
 def fit(text: str, inches: float) -> str:
@@ -117,7 +123,11 @@ def plot_run(folder: Path | str) -> list[Path]:
     A figure whose file is in the folder but not the run's (:func:`~multilayer.results.folder.may_write`)
     is not drawn: that file is kept.
     """
-    folder = Path(folder)
+    with quiet_fonts():
+        return _plot_run(Path(folder))
+
+
+def _plot_run(folder: Path) -> list[Path]:
     run = read_run(folder.name, folder)
     written = []
     radius = (run.case.get("geometry") or {}).get("radius")
