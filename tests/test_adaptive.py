@@ -171,7 +171,7 @@ def test_the_error_per_unit_time_is_measured_over_the_memory_time():
     time = TimeSpec(end=1.0, dt=1e-3, tolerance=1e-2)
     assert clock_for(time).memory == 1.0
     assert clock_for(time, SinePressure(1.0, 4.0), SinePressure(1.0, 10.0)).memory == 0.1
-    clock = clock_for(attrs.evolve(time, memory=0.25), SinePressure(1.0, 10.0))
+    clock = clock_for(attrs.evolve(time, memory=0.25, size="so-far"), SinePressure(1.0, 10.0))
     assert clock.memory == 0.25
     x, before = np.array([1.0, -3.0]), np.array([1.0, -2.0])
     assert clock.size(x, before, 0.1, 0.01) == 10.0  # t < W: t |Δx|/Δt
@@ -179,12 +179,14 @@ def test_the_error_per_unit_time_is_measured_over_the_memory_time():
 
 
 def test_a_fields_size_over_the_memory_time_counts_its_rate_over_w_and_forgets_its_peak():
-    """time.size = "memory": the rate term is W |Δx|/Δt from the first step (the first period measured as the
-    later ones), and the peak decays by exp(−Δt/W) a step, as N_W forgets its steps; "so-far" keeps the peak."""
+    """time.size = "memory" (a periodic load's default): the rate term is W |Δx|/Δt from the first step (the first
+    period measured as the later ones), and the peak decays by exp(−Δt/W) a step, as N_W forgets its steps;
+    "so-far" keeps the peak."""
     time = TimeSpec(end=3.0, dt=1e-3, tolerance=1e-2)
     x, before = np.array([1.0, -3.0]), np.array([1.0, -2.0])
-    so_far, memory = clock_for(time, SinePressure(1.0, 4.0)), clock_for(attrs.evolve(time, size="memory"),
-                                                                       SinePressure(1.0, 4.0))
+    so_far, memory = clock_for(attrs.evolve(time, size="so-far"), SinePressure(1.0, 4.0)), clock_for(time,
+                                                                                                    SinePressure(1.0, 4.0))
+    assert clock_for(time).over_memory is False  # no periodic load: "so-far" by default
     assert so_far.size(x, before, 0.1, 0.01) == pytest.approx(10.0)  # t < W = 0.25: t |Δx|/Δt
     assert memory.size(x, before, 0.1, 0.01) == pytest.approx(25.0)  # W |Δx|/Δt
     assert memory.size(x, before, 2.0, 0.01) == so_far.size(x, before, 2.0, 0.01) == pytest.approx(25.0)

@@ -14,7 +14,7 @@ from multilayer_plugins.channel import ChannelFluid, NavierStokes, Stokes
                                              ("stokes", Stokes, [])])
 def test_registered_with_density_and_viscosity(name, cls, ends):
     record = Registry.load().get("fluid", name).record
-    stabilization = ["stabilization", "grad_div"] if cls is NavierStokes else []
+    stabilization = ["stabilization", "grad_div", "supg_dt"] if cls is NavierStokes else []
     assert [p.name for p in record.params] == ["density", "viscosity", *ends, *stabilization]
     assert all(p.gt == 0.0 and p.required for p in record.params[:2])
     assert not any(p.required for p in record.params[2:])
