@@ -18,7 +18,7 @@ def test_registered_with_density_and_viscosity(name, cls, ends):
     assert [p.name for p in record.params] == ["density", "viscosity", *ends, *stabilization]
     assert all(p.gt == 0.0 and p.required for p in record.params[:2])
     assert not any(p.required for p in record.params[2:])
-    assert [p.default for p in record.params[4:]] == (["supg", 0.1] if stabilization else [])
+    assert [p.default for p in record.params[4:]] == (["supg", 0.1, None] if stabilization else [])
     fluid = record.factory(density=1.06, viscosity=0.035)
     assert isinstance(fluid, cls) and isinstance(fluid, ChannelFluid) and isinstance(fluid, Fluid)
     assert (fluid.density, fluid.viscosity) == (1.06, 0.035)

@@ -48,7 +48,10 @@ flux through the ends), and with τ_M ~ h/2|a| > Δt (a coarse mesh, no time
 term) the centreline velocity of the 10 × 2 tube of
 tests/test_fluid_stabilization.py reached −287 times the mean velocity.  So
 the stabilized step changes with Δt: refined in Δt at a fixed mesh it tends
-to that mesh's Galerkin step.  τ_C is the convective scaling of grad-div (a
+to that mesh's Galerkin step.  With ``supg_dt`` = Δt_τ the rate in τ_M is
+max(ϱ, 1/Δt_τ): every step at that rate or slower solves one stabilized
+problem (an adaptive run's default, at its smallest step, so that its error
+estimate sees all that changes with the step), and τ_M ϱ ≤ ½ still holds.  τ_C is the convective scaling of grad-div (a
 cell viscosity |a|h/2 on the divergence): it vanishes with a, so at small
 Reynolds numbers the stabilized step departs from the Galerkin one in
 proportion to Re, as advection itself does, and it does not depend on Δt.
