@@ -358,6 +358,27 @@ def test_a_run_in_another_thread_is_stopped_after_its_step_as_a_signal_would():
     assert result.reason == "interrupted by SIGTERM after step 3 (t = 0.0003 s)" and loop.runs() == []
 
 
+def test_a_run_whose_step_a_signal_cuts_short_with_another_exception_is_interrupted_not_failed():
+    """A signal that lands inside an extension's call can surface as another exception there (pybind11's
+    RuntimeError "Caught an unknown exception!", seen in a pool worker's setup under SIGTERM): the run was
+    stopped by the signal, so it is "interrupted" by it, the surfaced exception named in the reason."""
+    case = load_case(PULSE, [*SMALL, "time.end=0.05", "output.every=0"])
+    results = {}
+
+    def progress(tally, row):
+        if tally.steps == 3:
+            loop.stop("SIGTERM", worker.ident)
+            raise RuntimeError("Caught an unknown exception!")
+
+    worker = threading.Thread(target=lambda: results.update(r=loop.run_held(case, progress=progress)[0]))
+    worker.start()
+    worker.join(60)
+    result = results["r"]
+    assert (result.status, result.steps, result.signal) == ("interrupted", 3, "SIGTERM")
+    assert result.reason == ("interrupted by SIGTERM after step 3 (t = 0.0003 s; on the way: RuntimeError after "
+                             "step 3: Caught an unknown exception!)")
+
+
 def test_check_plugin_stopped_by_a_signal_during_its_coupled_run_is_no_failed_check(monkeypatch, capsys):
     import multilayer.testing
 

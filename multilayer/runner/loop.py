@@ -313,7 +313,14 @@ def _run(case: Case, results: ResultsFolder | HeldResults, registry: Registry, s
     except Exception as exc:  # a bug: still keep the results and say where
         status, reason = "failed", f"{type(exc).__name__} after step {tally.steps if tally else 0}: {exc}"
         crash = traceback.format_exc()
-        print(crash, file=sys.stderr)
+        if not signals():
+            print(crash, file=sys.stderr)
+    if status == "failed" and signals():
+        # a signal caught meanwhile stopped it: its effect surfaced as another exception on the way (a C++
+        # extension's call cut short reports "Caught an unknown exception!", an import cut short an ImportError)
+        status, stopped_by, crash = "interrupted", signals(), ""
+        reason = (f"interrupted by {stopped_by} after step {tally.steps if tally else 0} "
+                  f"(t = {tally.t if tally else 0:.6g} s; on the way: {reason})")
     tally = tally or Tally(0.0, EnergyBound(0.0, case.limits.energy_margin))
     units = dict(setup.geometry.integral_units) if setup else {}
     ranges = probe_ranges(case.resolved.get("output", {}).get("probes", []), _written_series(results), units)
