@@ -20,8 +20,9 @@ from pathlib import Path
 import pytest
 
 import multilayer as ml
-from multilayer.campaign.pulse_wave import foot_to_foot, stack_long_wave_speed
+from multilayer.campaign.pulse_wave import stack_long_wave_speed
 from multilayer.plugin.registry import Registry
+from multilayer.results.pulse import foot_to_foot
 
 SCRIPT = Path(__file__).parents[1] / "scripts" / "moens_korteweg.py"
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from test_prestress import MMHG, REGISTRY, TUBE
 
-from multilayer.campaign.pulse_wave import foot_to_foot
 from multilayer.case.casefile import validate_data
 from multilayer.coupling.build import prepare
+from multilayer.results.pulse import foot_to_foot
 from multilayer.results.reading import read_run
 from multilayer.runner.loop import run_case
 from multilayer.wall.equilibrium import static_deflection

@@ -8,13 +8,9 @@ import numpy as np
 import pytest
 
 import multilayer as ml
-from multilayer.campaign.pulse_wave import (
-    foot,
-    foot_to_foot,
-    loop_speed,
-    stack_long_wave_speed,
-)
+from multilayer.campaign.pulse_wave import stack_long_wave_speed
 from multilayer.plugin.registry import Registry
+from multilayer.results.pulse import foot, foot_to_foot, loop_speed
 from multilayer.wall.equilibrium import lumen_compliance
 from multilayer.wall.stack import Stack, WallSpace
 from multilayer_plugins.axisymmetric import Axisymmetric

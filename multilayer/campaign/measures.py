@@ -11,16 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from multilayer.campaign.pulse_wave import (
-    ARRIVED,
-    Speed,
-    foot_to_foot,
-    loop_speed,
-    radial_power,
-    stack_long_wave_speed,
-)
+from multilayer.campaign.pulse_wave import radial_power, stack_long_wave_speed
 from multilayer.plugin.registry import Registry
 from multilayer.plugin.units import MMHG
+from multilayer.results.pulse import ARRIVED, Speed, foot_to_foot, loop_speed
 from multilayer.results.reading import RunData, dof_counts, finite_rows
 
 

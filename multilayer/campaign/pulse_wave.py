@@ -1,11 +1,11 @@
-"""The long-wave speed the whole wall predicts, and the pulse-wave velocity as a clinician measures it.
+"""The long-wave speed the whole wall predicts.
 
 * :func:`stack_long_wave_speed` — Moens–Korteweg for the whole stack:
   c² = A/(ρ_f dA/dP) with the static compliance dA/dP of every layer, thin
   and thick (:func:`multilayer.wall.equilibrium.lumen_compliance`);
-* the feet of a pulse and the speeds measured from a run's series
-  (:func:`foot`, :func:`foot_to_foot`, :func:`loop_speed`) are
-  :mod:`multilayer.results.pulse`'s, imported here for the campaign's use.
+* the pulse-wave velocity as a clinician measures it, from the feet of a
+  pulse in a run's series (``foot``, ``foot_to_foot``, ``loop_speed``), is
+  :mod:`multilayer.results.pulse`'s.
 
 Each returns a :class:`Speed`: a positive number, or None and the reason
 there is none.
@@ -22,19 +22,7 @@ import numpy as np
 from multilayer.case.model import LayerSpec
 from multilayer.plugin.records import MODEL
 from multilayer.plugin.registry import Registry
-from multilayer.results.pulse import (  # noqa: F401 (the campaign's names for them)
-    ARRIVED,
-    BEAT,
-    MERGE,
-    MIN_ROWS,
-    Foot,
-    Speed,
-    foot,
-    foot_to_foot,
-    loop_speed,
-    section,
-    upstrokes,
-)
+from multilayer.results.pulse import Speed
 from multilayer.scene.setup import build_layer
 from multilayer.wall.checks import LayerError
 from multilayer.wall.equilibrium import lumen_compliance

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from multilayer.campaign.pulse_wave import Speed
+from multilayer.results.pulse import Speed
 
 NONE = "—"
 
